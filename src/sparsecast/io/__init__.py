@@ -1,0 +1,1 @@
+"""File input and output: volumes, images (and later meshes)."""

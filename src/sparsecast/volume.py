@@ -1,0 +1,261 @@
+"""The :class:`Volume`: a scalar voxel array with spacing and origin.
+
+Index space follows VTK image data / OSPRay structured volumes: voxel ``(i, j, k)``
+is the sample at point ``(x=i, y=j, z=k)``; the domain is the box
+``[0, nx-1] x [0, ny-1] x [0, nz-1]`` and ``world = origin + spacing * index``.
+Arrays are C-ordered with shape ``(nz, ny, nx)`` and indexed ``[k, j, i]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .errors import ParameterError, VolumeDataError
+from .kernels.bricks import brick_minmax
+
+__all__ = ["Volume", "BrickStats", "SUPPORTED_DTYPES"]
+
+#: dtypes the renderers are compiled for; anything else is rejected at the boundary.
+SUPPORTED_DTYPES: tuple[np.dtype, ...] = tuple(
+    np.dtype(t) for t in ("uint8", "uint16", "int16", "float32", "float64")
+)
+
+NonFinitePolicy = Literal["raise", "replace"]
+
+
+@dataclass(frozen=True)
+class BrickStats:
+    """Per-brick value ranges of a volume (computed once, reused by every TF).
+
+    Attributes
+    ----------
+    brick_size : int
+        Cells per brick edge ``B``; brick ``b`` spans voxels ``[b*B, (b+1)*B]``.
+    vmin, vmax : ndarray of float64, shape (nbz, nby, nbx)
+        Value range of each brick including a one-voxel apron, so any trilinear
+        sample (and any central-difference neighbour) inside the brick lies in
+        ``[vmin, vmax]``.
+    build_ms : float
+        Wall time of the computation.
+    """
+
+    brick_size: int
+    vmin: np.ndarray
+    vmax: np.ndarray
+    build_ms: float
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """Brick counts ``(nbz, nby, nbx)``."""
+        return self.vmin.shape  # type: ignore[return-value]
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.vmin.nbytes + self.vmax.nbytes)
+
+
+def _as_triple(value, name: str, positive: bool) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.repeat(arr, 3)
+    if arr.shape != (3,):
+        raise ParameterError(f"{name}: expected 3 values (x, y, z), got {np.shape(value)}")
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name}: expected finite values, got {arr.tolist()}")
+    if positive and np.any(arr <= 0):
+        raise ParameterError(f"{name}: expected positive values, got {arr.tolist()}")
+    return arr
+
+
+class Volume:
+    """A scalar volume: voxel array, spacing and origin.
+
+    Parameters
+    ----------
+    data : array_like, shape (nz, ny, nx)
+        Voxel values, C-ordered ``[k, j, i]``. dtype must be one of uint8, uint16,
+        int16, float32 or float64 (see :data:`SUPPORTED_DTYPES`); bool and other
+        integer types are converted when lossless, otherwise rejected.
+    spacing : float or sequence of 3 floats, optional
+        Voxel size along ``(x, y, z)`` in world units. Default 1.
+    origin : sequence of 3 floats, optional
+        World position of voxel ``(0, 0, 0)``. Default 0.
+    name : str, optional
+        Label used in messages and benchmark records.
+    nonfinite : {"raise", "replace"}, optional
+        What to do with NaN/Inf in float data: ``"raise"`` (default) rejects the
+        volume; ``"replace"`` substitutes the finite minimum for NaN and -Inf and the
+        finite maximum for +Inf.
+
+    Raises
+    ------
+    VolumeDataError
+        Wrong number of dimensions, zero-size axis, unsupported dtype or NaN/Inf.
+
+    Examples
+    --------
+    >>> import numpy as np, sparsecast as sc
+    >>> vol = sc.Volume(np.zeros((4, 5, 6), np.float32), spacing=(1, 1, 2))
+    >>> vol.dims
+    (6, 5, 4)
+    """
+
+    def __init__(
+        self,
+        data,
+        spacing=1.0,
+        origin=0.0,
+        *,
+        name: str = "volume",
+        nonfinite: NonFinitePolicy = "raise",
+    ) -> None:
+        arr = np.asarray(data)
+        if arr.ndim != 3:
+            raise VolumeDataError(
+                f"{name}: expected a 3-D array of shape (nz, ny, nx), got {arr.ndim}-D shape {arr.shape}"
+            )
+        if min(arr.shape) == 0:
+            raise VolumeDataError(f"{name}: volume has a zero-size axis, shape {arr.shape}")
+        arr = _coerce_dtype(arr, name)
+        if arr.dtype.kind == "f":
+            arr = _check_finite(arr, name, nonfinite)
+        self._data = np.ascontiguousarray(arr)
+        self._data.flags.writeable = False  # indices cache derived data; keep it valid
+        self.spacing = _as_triple(spacing, "spacing", positive=True)
+        self.origin = _as_triple(origin, "origin", positive=False)
+        self.name = name
+        self._range: tuple[float, float] | None = None
+        self._bricks: dict[int, BrickStats] = {}
+
+    # -- basic properties -------------------------------------------------
+    @property
+    def data(self) -> np.ndarray:
+        """Read-only voxel array, shape ``(nz, ny, nx)``."""
+        return self._data
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """Array shape ``(nz, ny, nx)``."""
+        return self._data.shape  # type: ignore[return-value]
+
+    @property
+    def dims(self) -> tuple[int, int, int]:
+        """Voxel counts ``(nx, ny, nz)``."""
+        nz, ny, nx = self._data.shape
+        return (nx, ny, nz)
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self._data.dtype
+
+    @property
+    def nbytes(self) -> int:
+        return int(self._data.nbytes)
+
+    @property
+    def value_range(self) -> tuple[float, float]:
+        """``(min, max)`` of the voxel values (cached)."""
+        if self._range is None:
+            self._range = (float(self._data.min()), float(self._data.max()))
+        return self._range
+
+    @property
+    def extent(self) -> np.ndarray:
+        """Index-space size of the domain, ``(nx-1, ny-1, nz-1)``."""
+        return np.array(self.dims, dtype=np.float64) - 1.0
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World-space bounding box ``(lower, upper)`` corners (x, y, z)."""
+        lo = self.origin.copy()
+        hi = self.origin + self.spacing * self.extent
+        return lo, hi
+
+    @property
+    def center(self) -> np.ndarray:
+        lo, hi = self.bounds
+        return 0.5 * (lo + hi)
+
+    @property
+    def diagonal(self) -> float:
+        """World-space length of the domain's diagonal."""
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    def __repr__(self) -> str:
+        nx, ny, nz = self.dims
+        return (
+            f"Volume(name={self.name!r}, dims={nx}x{ny}x{nz}, dtype={self.dtype}, "
+            f"spacing={tuple(self.spacing.tolist())}, origin={tuple(self.origin.tolist())})"
+        )
+
+    # -- per-volume precomputation ----------------------------------------
+    def brick_stats(self, brick_size: int = 8) -> BrickStats:
+        """Per-brick min/max with a one-voxel apron (computed once, then cached).
+
+        Parameters
+        ----------
+        brick_size : int, optional
+            Cells per brick edge (default 8).
+        """
+        brick_size = int(brick_size)
+        if brick_size < 1:
+            raise ParameterError(f"brick_size: expected an integer >= 1, got {brick_size}")
+        cached = self._bricks.get(brick_size)
+        if cached is not None:
+            return cached
+        nbz, nby, nbx = (max(1, -(-(n - 1) // brick_size)) for n in self.shape)
+        vmin = np.empty((nbz, nby, nbx), np.float64)
+        vmax = np.empty((nbz, nby, nbx), np.float64)
+        t0 = time.perf_counter()
+        brick_minmax(self._data, brick_size, nbz, nby, nbx, vmin, vmax)
+        ms = (time.perf_counter() - t0) * 1e3
+        stats = BrickStats(brick_size, vmin, vmax, ms)
+        self._bricks[brick_size] = stats
+        return stats
+
+
+def _coerce_dtype(arr: np.ndarray, name: str) -> np.ndarray:
+    if arr.dtype in SUPPORTED_DTYPES:
+        return arr
+    supported = ", ".join(str(d) for d in SUPPORTED_DTYPES)
+    if arr.dtype == np.bool_:
+        return arr.astype(np.uint8)
+    if arr.dtype.kind in "iu" and arr.size:
+        # Convert other integer types only where no value changes.
+        lo, hi = int(arr.min()), int(arr.max())
+        for target in ("uint8", "int16", "uint16"):
+            info = np.iinfo(target)
+            if info.min <= lo and hi <= info.max:
+                return arr.astype(target)
+        return arr.astype(np.float64) if arr.dtype.itemsize <= 4 else _reject(arr, name, supported)
+    if arr.dtype == np.float16:
+        return arr.astype(np.float32)
+    return _reject(arr, name, supported)
+
+
+def _reject(arr: np.ndarray, name: str, supported: str) -> np.ndarray:
+    raise VolumeDataError(f"{name}: unsupported dtype {arr.dtype}; expected one of {supported}")
+
+
+def _check_finite(arr: np.ndarray, name: str, policy: str) -> np.ndarray:
+    finite = np.isfinite(arr)
+    if finite.all():
+        return arr
+    n_bad = int(arr.size - np.count_nonzero(finite))
+    if policy == "raise":
+        raise VolumeDataError(
+            f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
+            f"(pass nonfinite='replace' to substitute the finite min/max)"
+        )
+    if policy != "replace":
+        raise ParameterError(f"nonfinite: expected 'raise' or 'replace', got {policy!r}")
+    if not finite.any():
+        raise VolumeDataError(f"{name}: every voxel is NaN or Inf; nothing to replace them with")
+    lo = arr[finite].min()
+    hi = arr[finite].max()
+    return np.nan_to_num(arr, nan=lo, posinf=hi, neginf=lo)
