@@ -1,0 +1,49 @@
+"""sparsecast: fast ray casting of sparse data.
+
+>>> import sparsecast as sc
+>>> vol = sc.datasets.nbody_blobs(64)
+>>> tf = sc.TransferFunction.preset("viridis", value_range=vol.value_range)
+>>> cam = sc.Camera.orbit(vol, azimuth=30, elevation=20)
+>>> img = sc.render(vol, tf, cam, width=64, height=64)
+>>> img.rgba.shape
+(64, 64, 4)
+"""
+
+from . import datasets
+from .camera import Camera
+from .errors import (
+    FileFormatError,
+    ParameterError,
+    SparsecastError,
+    TransferFunctionError,
+    VolumeDataError,
+)
+from .index import SpatialIndex, available_indices, build_index
+from .io import load_volume, save_volume
+from .render import Image, render
+from .transfer import PRESETS, TransferFunction
+from .volume import BrickStats, Volume
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BrickStats",
+    "Camera",
+    "FileFormatError",
+    "Image",
+    "PRESETS",
+    "ParameterError",
+    "SparsecastError",
+    "SpatialIndex",
+    "TransferFunction",
+    "TransferFunctionError",
+    "Volume",
+    "VolumeDataError",
+    "available_indices",
+    "build_index",
+    "datasets",
+    "load_volume",
+    "render",
+    "save_volume",
+    "__version__",
+]

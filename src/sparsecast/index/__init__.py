@@ -1,0 +1,11 @@
+"""Spatial indices for empty-space skipping, one module each.
+
+Importing this package registers every index; ``build_index(volume, tf, name)``
+builds one by name.
+"""
+
+from .base import SpatialIndex
+from .registry import available_indices, build_index, register_index
+from . import naive as _naive  # noqa: F401  (registers "naive")
+
+__all__ = ["SpatialIndex", "available_indices", "build_index", "register_index"]

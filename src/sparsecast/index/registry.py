@@ -1,0 +1,45 @@
+"""Name -> index class registry behind ``build_index`` and ``available_indices``."""
+
+from __future__ import annotations
+
+import time
+
+from ..errors import ParameterError
+from .base import SpatialIndex
+
+_INDICES: dict[str, type[SpatialIndex]] = {}
+
+
+def register_index(cls: type[SpatialIndex]) -> type[SpatialIndex]:
+    """Class decorator: make ``cls`` available under ``cls.name``."""
+    if not cls.name:
+        raise TypeError(f"{cls.__name__} has no name")
+    _INDICES[cls.name] = cls
+    return cls
+
+
+def available_indices() -> list[str]:
+    """Names accepted by ``render(index=...)``, ``"naive"`` first."""
+    return sorted(_INDICES, key=lambda n: (n != "naive", n))
+
+
+def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
+    """Build the named index for ``volume`` classified by ``tf``.
+
+    Parameters
+    ----------
+    volume : Volume
+    tf : TransferFunction
+    name : str
+        One of :func:`available_indices`.
+    **options
+        Passed to the index class (e.g. ``brick_size``).
+    """
+    cls = _INDICES.get(name)
+    if cls is None:
+        raise ParameterError(f"index: unknown index {name!r}; expected one of: {', '.join(available_indices())}")
+    t0 = time.perf_counter()
+    idx = cls(volume, tf, **options)
+    if not idx.build_phases:
+        idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
+    return idx

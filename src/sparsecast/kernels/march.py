@@ -1,0 +1,92 @@
+"""Marching one run of lattice samples: the inner loop every DVR renderer shares.
+
+The naive marcher calls :func:`march_segment` once per ray over the whole box;
+empty-space-skipping renderers call it once per non-empty segment their index
+yields. Because all of them go through this function with the same global
+lattice indices ``k``, they produce the same floats wherever they take the same
+samples, and skipping a sample whose opacity is zero changes nothing.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from .sample import gradient, trilinear
+from .shade import SHADING_ENABLED, blinn_phong, tf_lookup
+
+
+@njit(cache=True)
+def march_segment(
+    data, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, k_begin, k_end,
+    acc_r, acc_g, acc_b, acc_a,
+    ert, shading,
+):
+    """Composite lattice samples ``k_begin..k_end`` (inclusive) front to back.
+
+    Parameters
+    ----------
+    data : (nz, ny, nx) array
+        Voxels.
+    table, v_lo, scale
+        Step-corrected TF table (see :meth:`TransferFunction.opacity_table`), the
+        value at entry 0 and entries per data unit.
+    ox, oy, oz, dx, dy, dz : float
+        Ray in *index* space: the sample ``k`` is at ``o + (k * dt) * d``, where
+        ``t = k * dt`` is the world-space distance along the world ray.
+    wdx, wdy, wdz : float
+        Unit world-space ray direction (for shading).
+    inv_spacing : (3,) float64
+        ``1 / spacing`` (x, y, z), turning index gradients into world gradients.
+    dt : float
+        World-space lattice step.
+    k_begin, k_end : int
+        Inclusive range of lattice indices to visit.
+    acc_r, acc_g, acc_b, acc_a : float
+        Accumulated premultiplied colour and opacity so far.
+    ert : float
+        Early-ray-termination threshold; marching stops once ``acc_a >= ert``.
+    shading : (5,) float64
+        ``enabled, ka, kd, ks, shininess`` (see :mod:`.shade`).
+
+    Returns
+    -------
+    acc_r, acc_g, acc_b, acc_a : float
+        Updated accumulation.
+    k_next : int
+        First lattice index not visited (``k_end + 1`` unless terminated early).
+    n_samples, n_nonempty : int
+        Samples taken, and how many of them had non-zero opacity.
+    """
+    n_samples = 0
+    n_nonempty = 0
+    shade = shading[SHADING_ENABLED] != 0.0
+    k = k_begin
+    while k <= k_end:
+        if acc_a >= ert:
+            break
+        t = k * dt
+        x = ox + t * dx
+        y = oy + t * dy
+        z = oz + t * dz
+        v = trilinear(data, x, y, z)
+        r, g, b, a = tf_lookup(table, v, v_lo, scale)
+        n_samples += 1
+        if a > 0.0:
+            n_nonempty += 1
+            if shade:
+                gx, gy, gz = gradient(data, x, y, z)
+                r, g, b = blinn_phong(
+                    r, g, b,
+                    gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
+                    wdx, wdy, wdz, shading,
+                )
+            w = (1.0 - acc_a) * a
+            acc_r += w * r
+            acc_g += w * g
+            acc_b += w * b
+            acc_a += w
+        k += 1
+    return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty

@@ -1,0 +1,68 @@
+"""Transfer-function lookup, headlight Blinn-Phong and front-to-back compositing."""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+# Layout of the ``shading`` parameter array passed to every marcher.
+SHADING_ENABLED, SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS = range(5)
+SHADING_SIZE = 5
+
+
+@njit(cache=True)
+def tf_lookup(table, v, v_lo, scale):
+    """RGBA at value ``v``: linear interpolation between entries of ``table``.
+
+    ``table`` is ``(n, 4)`` float32 with straight colour and step-corrected opacity;
+    the entry index is ``(v - v_lo) * scale`` clamped to ``[0, n-1]``.
+    """
+    n = table.shape[0]
+    x = (v - v_lo) * scale
+    if x < 0.0:
+        x = 0.0
+    elif x > n - 1:
+        x = float(n - 1)
+    i = int(x)
+    if i > n - 2:
+        i = n - 2
+    f = x - i
+    g = 1.0 - f
+    return (
+        g * table[i, 0] + f * table[i + 1, 0],
+        g * table[i, 1] + f * table[i + 1, 1],
+        g * table[i, 2] + f * table[i + 1, 2],
+        g * table[i, 3] + f * table[i + 1, 3],
+    )
+
+
+@njit(cache=True)
+def blinn_phong(r, g, b, nx, ny, nz, dx, dy, dz, shading):
+    """Shade straight colour ``(r, g, b)`` with a headlight (light at the eye).
+
+    ``(nx, ny, nz)`` is the (unnormalised) world gradient and ``(dx, dy, dz)`` the
+    unit ray direction. With the light at the eye, light, view and half vectors all
+    equal ``-d``; the lighting is two-sided because a gradient has no inside.
+    """
+    ka = shading[SHADING_KA]
+    kd = shading[SHADING_KD]
+    ks = shading[SHADING_KS]
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length == 0.0:
+        # Homogeneous region: no surface to light, keep the ambient + diffuse look.
+        return min(r * (ka + kd), 1.0), min(g * (ka + kd), 1.0), min(b * (ka + kd), 1.0)
+    ndl = abs(nx * dx + ny * dy + nz * dz) / length
+    spec = ks * ndl ** shading[SHADING_SHININESS]
+    diff = ka + kd * ndl
+    return min(r * diff + spec, 1.0), min(g * diff + spec, 1.0), min(b * diff + spec, 1.0)
+
+
+@njit(cache=True)
+def write_pixel(out, py, px, r, g, b, a, background):
+    """Store premultiplied ``(r, g, b, a)`` composited over ``background`` (straight RGBA)."""
+    rest = (1.0 - a) * background[3]
+    out[py, px, 0] = r + rest * background[0]
+    out[py, px, 1] = g + rest * background[1]
+    out[py, px, 2] = b + rest * background[2]
+    out[py, px, 3] = a + rest

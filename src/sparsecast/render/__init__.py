@@ -1,0 +1,7 @@
+"""Renderers: the DVR entry point and one marcher per index."""
+
+from . import naive as _naive  # noqa: F401  (registers the naive marcher)
+from .dvr import DEFAULT_SHADING, render
+from .image import Image
+
+__all__ = ["render", "Image", "DEFAULT_SHADING"]
