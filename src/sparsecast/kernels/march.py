@@ -12,10 +12,10 @@ from __future__ import annotations
 from numba import njit
 
 from .sample import gradient, trilinear
-from .shade import SHADING_ENABLED, blinn_phong, tf_lookup
+from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def march_segment(
     data, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
@@ -72,10 +72,11 @@ def march_segment(
         y = oy + t * dy
         z = oz + t * dz
         v = trilinear(data, x, y, z)
-        r, g, b, a = tf_lookup(table, v, v_lo, scale)
+        i, f, a = tf_alpha(table, v, v_lo, scale)
         n_samples += 1
         if a > 0.0:
             n_nonempty += 1
+            r, g, b = tf_color(table, i, f)
             if shade:
                 gx, gy, gz = gradient(data, x, y, z)
                 r, g, b = blinn_phong(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _axis(x, n):
     """Clamp coordinate ``x`` to ``[0, n-1]``; return (lower voxel, upper voxel, fraction)."""
     if x < 0.0:
@@ -19,7 +19,7 @@ def _axis(x, n):
     return i0, i1, x - i0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def trilinear(data, x, y, z):
     """Trilinearly interpolated value at index-space point ``(x, y, z)``.
 

@@ -11,12 +11,15 @@ SHADING_ENABLED, SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS = range(5
 SHADING_SIZE = 5
 
 
-@njit(cache=True)
-def tf_lookup(table, v, v_lo, scale):
-    """RGBA at value ``v``: linear interpolation between entries of ``table``.
+@njit(cache=True, inline="always")
+def tf_alpha(table, v, v_lo, scale):
+    """Opacity at value ``v`` plus the table position ``(i, f)`` for :func:`tf_color`.
 
     ``table`` is ``(n, 4)`` float32 with straight colour and step-corrected opacity;
-    the entry index is ``(v - v_lo) * scale`` clamped to ``[0, n-1]``.
+    the entry position is ``x = (v - v_lo) * scale`` clamped to ``[0, n-1]``, and
+    rows ``i = min(floor(x), n-2)`` and ``i+1`` are blended with weight ``f = x - i``.
+    Opacity comes first because most samples in a sparse volume are transparent
+    and never need their colour.
     """
     n = table.shape[0]
     x = (v - v_lo) * scale
@@ -28,12 +31,17 @@ def tf_lookup(table, v, v_lo, scale):
     if i > n - 2:
         i = n - 2
     f = x - i
+    return i, f, (1.0 - f) * table[i, 3] + f * table[i + 1, 3]
+
+
+@njit(cache=True, inline="always")
+def tf_color(table, i, f):
+    """Straight colour at the table position returned by :func:`tf_alpha`."""
     g = 1.0 - f
     return (
         g * table[i, 0] + f * table[i + 1, 0],
         g * table[i, 1] + f * table[i + 1, 1],
         g * table[i, 2] + f * table[i + 1, 2],
-        g * table[i, 3] + f * table[i + 1, 3],
     )
 
 
