@@ -134,10 +134,9 @@ class Camera:
         az, el = np.radians(azimuth), np.radians(elevation)
         # Direction from the centre to the eye.
         to_eye = np.array([-np.sin(az) * np.cos(el), -np.cos(az) * np.cos(el), np.sin(el)])
-        up = np.array([0.0, 0.0, 1.0])
-        if abs(np.cos(el)) < 1e-6:
-            # Looking straight down/up the z axis: keep screen-up continuous with azimuth.
-            up = np.array([np.sin(az), np.cos(az), 0.0]) * np.sign(np.sin(el))
+        # Screen-up is d(to_eye)/d(elevation): orthogonal to the view direction for
+        # every angle, +z at the horizon and continuous through the poles.
+        up = np.array([np.sin(az) * np.sin(el), np.cos(az) * np.sin(el), np.cos(el)])
         if distance is None:
             if projection == "perspective":
                 distance = radius / np.sin(np.radians(fov_y) / 2.0) / zoom

@@ -225,7 +225,9 @@ def bench(
                       repeat=repeat, warmup=warmup, dt=dt)
     with _err.status("benchmarking") as status:
         records = run_benchmarks(cfg, progress=lambda msg: status.update(f"benchmarking: {msg}"))
-    _out.print(format_table(records))
+    # A table this wide is unreadable folded at 80 columns when piped to a file.
+    wide = _out if _out.is_terminal else Console(soft_wrap=True, width=200)
+    wide.print(format_table(records))
     path = json_path or Path("bench-results") / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
     write_json(records, path)
     _out.print(f"wrote {len(records)} records to {path}")
