@@ -20,7 +20,7 @@ from .errors import (
 )
 from .index import SpatialIndex, available_indices, build_index
 from .io import load_volume, save_volume
-from .render import Image, render
+from .renderers import Image, render
 from .transfer import PRESETS, TransferFunction
 from .volume import BrickStats, Volume
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..index import available_indices, build_index
-from ..render import render
+from ..renderers import render
 from ..volume import Volume
 from .datasets import DATASETS
 
