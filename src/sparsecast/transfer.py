@@ -117,6 +117,13 @@ class TransferFunction:
         table_size = int(table_size)
         if not _MIN_TABLE <= table_size <= _MAX_TABLE:
             raise ParameterError(f"table_size: expected {_MIN_TABLE}..{_MAX_TABLE}, got {table_size}")
+        scale = (table_size - 1) / (hi - lo)
+        if not (np.isfinite(scale) and scale > 0):
+            # Spans below ~1e-305 (or beyond the float range) cannot be mapped to table entries.
+            raise TransferFunctionError(
+                f"value_range: span {hi - lo:g} of ({lo:g}, {hi:g}) is too small or too large "
+                "to map onto a table; expected a span between about 1e-300 and 1e300"
+            )
         if unit_distance is not None and not (np.isfinite(unit_distance) and unit_distance > 0):
             raise ParameterError(f"unit_distance: expected a positive number or None, got {unit_distance}")
 
@@ -160,7 +167,14 @@ class TransferFunction:
             Colour-map presets only: opacity at the top of the range.
         """
         key = name.lower()
-        lo, hi = (float(v) for v in value_range)
+        try:
+            lo, hi = (float(v) for v in value_range)
+        except (TypeError, ValueError):
+            raise TransferFunctionError(
+                f"value_range: expected two numbers (lo, hi), got {value_range!r}"
+            ) from None
+        if not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
+            raise TransferFunctionError(f"value_range: expected finite lo <= hi, got ({lo}, {hi})")
         if key in _HAND_PRESETS:
             norm = np.array(_HAND_PRESETS[key], dtype=np.float64)
         elif key in _COLORMAP_PRESETS:

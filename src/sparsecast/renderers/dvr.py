@@ -98,7 +98,7 @@ def render(
     min_spacing = float(volume.spacing.min())
     if dt is None:
         dt = 0.5 * min_spacing
-    dt = float(dt)
+    dt = _as_float(dt, "dt")
     if not (np.isfinite(dt) and dt > 0):
         raise ParameterError(f"dt: expected a positive world-space step, got {dt}")
     if volume.diagonal / dt > MAX_SAMPLES_PER_RAY:
@@ -106,7 +106,7 @@ def render(
             f"dt: {dt:g} would take {volume.diagonal / dt:.3g} samples per ray across the volume; "
             f"expected at most {MAX_SAMPLES_PER_RAY} (dt >= {volume.diagonal / MAX_SAMPLES_PER_RAY:.3g})"
         )
-    ert = float(ert)
+    ert = _as_float(ert, "ert")
     if not (0.0 < ert <= 1.0):
         raise ParameterError(f"ert: expected an opacity threshold in (0, 1], got {ert}")
 
@@ -161,6 +161,13 @@ def render(
         "shading": bool(setup.shading[0]),
     }
     return Image(setup.rgba, stats, setup.samples)
+
+
+def _as_float(value, name: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name}: expected a number, got {value!r}") from None
 
 
 def _check_size(width, height) -> tuple[int, int]:

@@ -1,0 +1,28 @@
+"""Shared pytest fixtures and the hypothesis profile for the sparsecast tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import settings
+
+# Keep property tests quick and free of timing flakiness (Numba compiles on first use).
+settings.register_profile("ci", max_examples=25, deadline=None)
+settings.load_profile("ci")
+
+#: ``../shared/data`` relative to the project root; absent in a fresh clone.
+SHARED_DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data_dir() -> Path:
+    """Directory of real public data (may not exist: tests using it must skip then)."""
+    return SHARED_DATA_DIR
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A seeded random generator, fresh for every test."""
+    return np.random.default_rng(20240611)
