@@ -15,9 +15,23 @@ from .sample import gradient, trilinear
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 
+@njit(cache=True)
+def _shade_sample(flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading):
+    """Blinn-Phong colour of one sample from its central-difference gradient.
+
+    Deliberately not inlined: keeping the six extra trilinear fetches out of the
+    marching loop keeps that loop small (unshaded marching is the common case).
+    """
+    gx, gy, gz = gradient(flat, nx, ny, nz, x, y, z)
+    return blinn_phong(
+        r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
+        wdx, wdy, wdz, shading,
+    )
+
+
 @njit(cache=True, inline="always")
 def march_segment(
-    data, table, v_lo, scale,
+    flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
     wdx, wdy, wdz, inv_spacing,
     dt, k_begin, k_end,
@@ -28,8 +42,9 @@ def march_segment(
 
     Parameters
     ----------
-    data : (nz, ny, nx) array
-        Voxels.
+    flat, nx, ny, nz
+        Voxels as a 1-D view of the C-ordered ``(nz, ny, nx)`` array, and its dims
+        (see :func:`.sample.trilinear`; make the view once per tile, not per ray).
     table, v_lo, scale
         Step-corrected TF table (see :meth:`TransferFunction.opacity_table`), the
         value at entry 0 and entries per data unit.
@@ -64,25 +79,20 @@ def march_segment(
     n_nonempty = 0
     shade = shading[SHADING_ENABLED] != 0.0
     k = k_begin
-    while k <= k_end:
-        if acc_a >= ert:
-            break
+    while k <= k_end and acc_a < ert:
         t = k * dt
         x = ox + t * dx
         y = oy + t * dy
         z = oz + t * dz
-        v = trilinear(data, x, y, z)
+        v = trilinear(flat, nx, ny, nz, x, y, z)
         i, f, a = tf_alpha(table, v, v_lo, scale)
         n_samples += 1
         if a > 0.0:
             n_nonempty += 1
             r, g, b = tf_color(table, i, f)
             if shade:
-                gx, gy, gz = gradient(data, x, y, z)
-                r, g, b = blinn_phong(
-                    r, g, b,
-                    gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
-                    wdx, wdy, wdz, shading,
+                r, g, b = _shade_sample(
+                    flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading
                 )
             w = (1.0 - acc_a) * a
             acc_r += w * r

@@ -7,40 +7,58 @@ from numba import njit
 
 @njit(cache=True, inline="always")
 def _axis(x, n):
-    """Clamp coordinate ``x`` to ``[0, n-1]``; return (lower voxel, upper voxel, fraction)."""
-    if x < 0.0:
-        x = 0.0
-    elif x > n - 1:
-        x = float(n - 1)
-    i0 = int(x)
-    if i0 > n - 2:
-        i0 = n - 2 if n >= 2 else 0
-    i1 = i0 + 1 if n >= 2 else 0
-    return i0, i1, x - i0
+    """Cell of coordinate ``x`` on an axis of ``n`` voxels: (lower voxel, upper voxel, fraction).
+
+    Only the integer cell index is clamped (to ``[0, max(n-2, 0)]``), which keeps
+    every read inside the array; the fraction is not, so a lattice point that
+    rounding puts an ulp outside the box extrapolates by an ulp. Clamping the
+    float coordinate as well cost ~12 % of the marching time. An axis of one
+    voxel gives ``(0, 0, x)``; its fraction multiplies a zero difference.
+    """
+    i0 = min(max(int(x), 0), max(n - 2, 0))
+    return i0, i0 + min(n - 1, 1), x - i0
 
 
 @njit(cache=True, inline="always")
-def trilinear(data, x, y, z):
+def clamp_point(x, y, z, nx, ny, nz):
+    """Clamp an index-space point to the volume box ``[0, n-1]^3``."""
+    return (
+        min(max(x, 0.0), nx - 1.0),
+        min(max(y, 0.0), ny - 1.0),
+        min(max(z, 0.0), nz - 1.0),
+    )
+
+
+@njit(cache=True, inline="always")
+def trilinear(flat, nx, ny, nz, x, y, z):
     """Trilinearly interpolated value at index-space point ``(x, y, z)``.
 
-    ``data`` is ``(nz, ny, nx)``. Points outside the domain are clamped to it, so a
-    lattice sample that rounding pushes an ulp outside the box reads the face value.
-    Interpolation order (x, then y, then z) is fixed: every renderer calls this one
-    function, so images agree bit for bit where they take the same samples.
+    ``flat`` is the C-ordered ``(nz, ny, nx)`` voxel array viewed as 1-D
+    (``data.reshape(-1)``): computing the eight addresses from two offsets per
+    axis is cheaper than eight 3-D index computations (about 1.3x faster
+    marching). Callers pass points inside the box (lattice samples are, up to
+    rounding; see :func:`_axis`); :func:`clamp_point` handles others.
+    Interpolation order (x, then y, then z) is fixed: every renderer calls this
+    one function, so images agree bit for bit where they take the same samples.
     """
-    nz, ny, nx = data.shape
     i0, i1, fx = _axis(x, nx)
     j0, j1, fy = _axis(y, ny)
     k0, k1, fz = _axis(z, nz)
+    row0 = k0 * ny
+    row1 = k1 * ny
+    a00 = (row0 + j0) * nx
+    a01 = (row0 + j1) * nx
+    a10 = (row1 + j0) * nx
+    a11 = (row1 + j1) * nx
     # Loads are converted to float first: unsigned differences would wrap.
-    v000 = float(data[k0, j0, i0])
-    v001 = float(data[k0, j0, i1])
-    v010 = float(data[k0, j1, i0])
-    v011 = float(data[k0, j1, i1])
-    v100 = float(data[k1, j0, i0])
-    v101 = float(data[k1, j0, i1])
-    v110 = float(data[k1, j1, i0])
-    v111 = float(data[k1, j1, i1])
+    v000 = float(flat[a00 + i0])
+    v001 = float(flat[a00 + i1])
+    v010 = float(flat[a01 + i0])
+    v011 = float(flat[a01 + i1])
+    v100 = float(flat[a10 + i0])
+    v101 = float(flat[a10 + i1])
+    v110 = float(flat[a11 + i0])
+    v111 = float(flat[a11 + i1])
     c00 = v000 + fx * (v001 - v000)
     c10 = v010 + fx * (v011 - v010)
     c01 = v100 + fx * (v101 - v100)
@@ -51,9 +69,14 @@ def trilinear(data, x, y, z):
 
 
 @njit(cache=True)
-def gradient(data, x, y, z):
-    """Index-space gradient by central differences of trilinear samples (h = 1 voxel)."""
-    gx = 0.5 * (trilinear(data, x + 1.0, y, z) - trilinear(data, x - 1.0, y, z))
-    gy = 0.5 * (trilinear(data, x, y + 1.0, z) - trilinear(data, x, y - 1.0, z))
-    gz = 0.5 * (trilinear(data, x, y, z + 1.0) - trilinear(data, x, y, z - 1.0))
+def gradient(flat, nx, ny, nz, x, y, z):
+    """Index-space gradient by central differences of trilinear samples (h = 1 voxel).
+
+    Neighbours outside the box are clamped to it (one-sided differences at faces).
+    """
+    x0, y0, z0 = clamp_point(x - 1.0, y - 1.0, z - 1.0, nx, ny, nz)
+    x1, y1, z1 = clamp_point(x + 1.0, y + 1.0, z + 1.0, nx, ny, nz)
+    gx = 0.5 * (trilinear(flat, nx, ny, nz, x1, y, z) - trilinear(flat, nx, ny, nz, x0, y, z))
+    gy = 0.5 * (trilinear(flat, nx, ny, nz, x, y1, z) - trilinear(flat, nx, ny, nz, x, y0, z))
+    gz = 0.5 * (trilinear(flat, nx, ny, nz, x, y, z1) - trilinear(flat, nx, ny, nz, x, y, z0))
     return gx, gy, gz

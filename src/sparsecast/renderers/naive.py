@@ -19,6 +19,7 @@ def naive_tile(
 ):
     """Render the pixels of one 8x8 tile."""
     nz, ny, nx = data.shape
+    flat = data.reshape(nz * ny * nx)  # a view of the C-contiguous voxels
     bx, by, bz = nx - 1.0, ny - 1.0, nz - 1.0
     x0, x1, y0, y1 = tile_bounds(tile, width, height)
     for py in range(y0, y1):
@@ -29,7 +30,7 @@ def naive_tile(
             t_near, t_far = clip_box(ox, oy, oz, dx, dy, dz, 0.0, 0.0, 0.0, bx, by, bz)
             k0, k1 = lattice_range(t_near, t_far, dt)
             r, g, b, a, _, ns, nne = march_segment(
-                data, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
+                flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
                 inv_spacing, dt, k0, k1, 0.0, 0.0, 0.0, 0.0, ert, shading,
             )
             write_pixel(out_rgba, py, px, r, g, b, a, background)
