@@ -20,11 +20,11 @@ import numpy as np
 
 from .errors import FileFormatError, ParameterError, TransferFunctionError
 from .io.atomic import atomic_path
+from .kernels.classify import classify_ranges, entry_span, range_is_empty
 
 __all__ = ["TransferFunction", "PRESETS"]
 
 _MIN_TABLE, _MAX_TABLE = 256, 4096
-_MARGIN = 1e-3  # table entries; see TransferFunction._entry_span
 
 # Presets: normalised control points (position in [0, 1] of the value range,
 # r, g, b, a). Colour-map presets take their colours from matplotlib and get an
@@ -212,24 +212,26 @@ class TransferFunction:
         """True when the opacity is zero everywhere (every image is background)."""
         return bool(self._prefix[-1] == 0)
 
-    def _entry_span(self, lo, hi):
-        """Table entries that a lookup of any value in ``[lo, hi]`` can touch."""
-        vlo, _ = self.value_range
-        n = self.table_size
-        x0 = np.clip((np.asarray(lo, np.float64) - vlo) * self.scale, 0, n - 1)
-        x1 = np.clip((np.asarray(hi, np.float64) - vlo) * self.scale, 0, n - 1)
-        # Linear interpolation between entries floor(x) and floor(x)+1: the span
-        # floor(x0)..ceil(x1) covers every entry with a non-zero weight. The small
-        # widening keeps the answer conservative when float32 trilinear
-        # interpolation rounds a sample an ulp outside its voxels' range.
-        first = np.floor(np.maximum(x0 - _MARGIN, 0)).astype(np.int64)
-        last = np.ceil(np.minimum(x1 + _MARGIN, n - 1)).astype(np.int64)
-        return first, last
+    @property
+    def prefix(self) -> np.ndarray:
+        """``prefix[i]``: entries among ``table[:i]`` with non-zero opacity (int64, n+1)."""
+        return self._prefix
 
     def is_empty(self, lo: float, hi: float) -> bool:
         """Whether the opacity is zero for every value in ``[lo, hi]`` (O(1))."""
-        first, last = self._entry_span(lo, hi)
-        return bool(self._prefix[last + 1] - self._prefix[first] == 0)
+        return bool(range_is_empty(self._prefix, float(self.value_range[0]), self.scale, float(lo), float(hi)))
+
+    def _entry_span(self, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorised :func:`kernels.classify.entry_span`: table entries a lookup of
+        any value in ``[lo, hi]`` can touch."""
+        lo = np.atleast_1d(np.asarray(lo, np.float64))
+        hi = np.atleast_1d(np.asarray(hi, np.float64))
+        first = np.empty(np.broadcast(lo, hi).shape, np.int64)
+        last = np.empty_like(first)
+        v_lo = float(self.value_range[0])
+        for idx, (a, b) in enumerate(zip(*np.broadcast_arrays(lo, hi))):
+            first.flat[idx], last.flat[idx] = entry_span(v_lo, self.scale, self.table_size, float(a), float(b))
+        return first, last
 
     def classify(self, vmin: np.ndarray, vmax: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`is_empty`: True where a region ``[vmin, vmax]`` is *non-empty*.
@@ -237,8 +239,13 @@ class TransferFunction:
         This is the per-brick reclassification a TF change costs: two table
         look-ups per brick, no pass over voxels.
         """
-        first, last = self._entry_span(vmin, vmax)
-        return (self._prefix[last + 1] - self._prefix[first]) > 0
+        lo = np.ascontiguousarray(vmin, dtype=np.float64)
+        hi = np.ascontiguousarray(vmax, dtype=np.float64)
+        if lo.shape != hi.shape:
+            raise ParameterError(f"vmin/vmax: shapes differ, {lo.shape} vs {hi.shape}")
+        out = np.empty(lo.size, np.bool_)
+        classify_ranges(self._prefix, float(self.value_range[0]), self.scale, lo.ravel(), hi.ravel(), out)
+        return out.reshape(lo.shape)
 
     def opacity_table(self, dt: float, unit_distance: float) -> np.ndarray:
         """Table with opacity corrected for step ``dt``: ``1 - (1 - a) ** (dt / unit)``.

@@ -6,6 +6,7 @@ builds one by name.
 
 from .base import SpatialIndex
 from .registry import available_indices, build_index, register_index
+from . import grid as _grid  # noqa: F401  (registers "grid-mm", "grid-pc")
 from . import naive as _naive  # noqa: F401  (registers "naive")
 
 __all__ = ["SpatialIndex", "available_indices", "build_index", "register_index"]

@@ -39,7 +39,12 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     if cls is None:
         raise ParameterError(f"index: unknown index {name!r}; expected one of: {', '.join(available_indices())}")
     t0 = time.perf_counter()
-    idx = cls(volume, tf, **options)
+    try:
+        idx = cls(volume, tf, **options)
+    except TypeError as exc:
+        if "unexpected keyword" not in str(exc):
+            raise
+        raise ParameterError(f"index {name!r}: {exc}") from None
     if not idx.build_phases:
         idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
     return idx

@@ -1,5 +1,6 @@
 """Renderers: the DVR entry point and one marcher per index."""
 
+from . import grid as _grid  # noqa: F401  (registers grid-mm, grid-pc)
 from . import naive as _naive  # noqa: F401  (registers the naive marcher)
 from .dvr import DEFAULT_SHADING, render
 from .image import Image

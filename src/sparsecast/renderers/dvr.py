@@ -47,6 +47,7 @@ def render(
     ert: float = 0.99,
     shading: bool | Mapping[str, float] = False,
     background: str | Sequence[float] = "transparent",
+    **index_options: Any,
 ) -> Image:
     """Direct volume rendering of ``volume`` classified by ``tf`` as seen by ``camera``.
 
@@ -75,6 +76,9 @@ def render(
     background : str or sequence of 3-4 floats
         Straight RGB(A) in [0, 1] composited behind the volume, or one of
         ``transparent`` (default), ``black``, ``white``, ``gray``.
+    **index_options
+        Passed to :func:`build_index` when ``index`` is a name (e.g. ``cell=16``
+        for the grids).
 
     Returns
     -------
@@ -115,9 +119,14 @@ def render(
 
     build_ms = 0.0
     if isinstance(index, str):
-        index = build_index(volume, tf, index)
+        index = build_index(volume, tf, index, **index_options)
         build_ms = index.build_ms
     elif isinstance(index, SpatialIndex):
+        if index_options:
+            raise ParameterError(
+                f"index options {sorted(index_options)} apply only when index is a name; "
+                "this index is already built"
+            )
         if index.volume is not volume or index.tf is not tf:
             raise ParameterError(
                 f"index: this {index.name!r} index was built for another volume or transfer function; "
