@@ -1,0 +1,187 @@
+"""The main oracle: every exact empty-space-skipping index renders the naive image.
+
+Parametrised over :func:`sparsecast.available_indices`, so an index registered by a
+later issue is checked here without new test code; per-index build options to
+exercise are listed in ``INDEX_OPTIONS``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import sparsecast as sc
+from sparsecast.index.registry import _INDICES
+
+#: build options each index is tested with (default: its defaults only)
+INDEX_OPTIONS: dict[str, list[dict]] = {
+    "grid-mm": [{"cell": 4}, {"cell": 8}, {"cell": 16}],
+    "grid-pc": [{"cell": 4}, {"cell": 8}, {"cell": 32}],
+}
+
+EXACT = [n for n in sc.available_indices() if n != "naive" and _INDICES[n].exact]
+CASES = [(n, opt) for n in EXACT for opt in INDEX_OPTIONS.get(n, [{}])]
+CASE_IDS = [f"{n}-{'-'.join(f'{k}{v}' for k, v in o.items()) or 'default'}" for n, o in CASES]
+ATOL = 1e-5
+
+
+def sparse_volume(rng: np.random.Generator, shape, n_blobs: int, dtype="float32", **kw) -> sc.Volume:
+    """Gaussian blobs at random places (values in [0, 1]); the rest exactly 0."""
+    nz, ny, nx = shape
+    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    field = np.zeros(shape, np.float64)
+    for _ in range(n_blobs):
+        c = rng.uniform(0, 1, 3) * (np.array([nx, ny, nz]) - 1)
+        s = rng.uniform(0.7, 3.0)
+        d2 = (x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2
+        field += rng.uniform(0.3, 1.0) * np.exp(-d2 / (2 * s * s)) * (d2 < (3 * s) ** 2)
+    field = np.clip(field, 0, 1)
+    if np.dtype(dtype) == np.uint8:
+        return sc.Volume(np.rint(field * 255).astype(np.uint8), **kw)
+    return sc.Volume(field.astype(dtype), **kw)
+
+
+def assert_same_as_naive(vol, tf, cam, w, h, name, opts, **kw):
+    ref = sc.render(vol, tf, cam, w, h, index="naive", **kw)
+    img = sc.render(vol, tf, cam, w, h, index=name, **opts, **kw)
+    diff = np.abs(img.rgba - ref.rgba).max()
+    assert diff <= ATOL, f"{name} {opts}: max abs diff {diff:.3g} vs naive"
+    # Skipping never adds samples, and never loses one of non-zero opacity
+    # (with early termination off, the non-empty count must match exactly).
+    assert img.stats["samples"] <= ref.stats["samples"]
+    if kw.get("ert", 0.99) >= 1.0:
+        assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
+    return img, ref
+
+
+def _cameras(vol):
+    c = vol.center
+    L = vol.diagonal
+    lo, hi = vol.bounds
+    inside = lo + (hi - lo) * np.array([0.45, 0.5, 0.55])
+    cams = {
+        "orbit-persp": sc.Camera.orbit(vol, 30, 20),
+        "orbit-ortho": sc.Camera.orbit(vol, -125, -35, projection="orthographic"),
+        "axis+x-ortho": sc.Camera.look_at(c - [L, 0, 0], c, projection="orthographic", ortho_height=L),
+        "axis-z-persp": sc.Camera.look_at(c + [0, 0, L], c, up=(0, 1, 0), fov_y=45),
+        "axis+y-ortho": sc.Camera.look_at(c - [0, L, 0], c, projection="orthographic", ortho_height=L),
+        "grazing": sc.Camera.look_at(c + [L, 0.0, 0.5 * (hi[2] - lo[2]) - 1e-9], c + [0, 0, 0.5 * (hi[2] - lo[2]) - 1e-9],
+                                     projection="orthographic", ortho_height=L),
+        "inside": sc.Camera.look_at(inside, inside + [0.3, 1.0, -0.2], fov_y=100),
+    }
+    return cams
+
+
+@pytest.fixture(scope="module")
+def scene():
+    rng = np.random.default_rng(11)
+    vol = sparse_volume(rng, (37, 29, 45), 9, spacing=(1.0, 0.8, 1.3), origin=(2.0, -1.0, 0.5))
+    return vol
+
+
+pytestmark = pytest.mark.skipif(not EXACT, reason="no exact ESS index registered yet")
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@pytest.mark.parametrize("camera", ["orbit-persp", "orbit-ortho", "axis+x-ortho", "axis-z-persp",
+                                    "axis+y-ortho", "grazing", "inside"])
+def test_fixed_scenes_equal_naive(scene, name, opts, camera):
+    vol = scene
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.15)
+    cam = _cameras(vol)[camera]
+    assert_same_as_naive(vol, tf, cam, 40, 32, name, opts, dt=0.45, ert=1.0)
+    assert_same_as_naive(vol, tf, cam, 24, 24, name, opts, dt=0.7, shading=True)
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_uint8_and_tf_edits(name, opts):
+    """A TF edit means a new index; each must agree with naive (uint8 volume)."""
+    rng = np.random.default_rng(5)
+    vol = sparse_volume(rng, (20, 33, 27), 6, dtype="uint8")
+    cam = sc.Camera.orbit(vol, 60, 10)
+    for threshold in (0.0, 0.05, 0.3, 0.8):
+        tf = sc.TransferFunction.preset("magma", (0, 255), threshold=threshold)
+        idx = sc.build_index(vol, tf, name, **opts)
+        ref = sc.render(vol, tf, cam, 20, 20)
+        img = sc.render(vol, tf, cam, 20, 20, index=idx)
+        assert np.abs(img.rgba - ref.rgba).max() <= ATOL
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_tf_without_empty_space(name, opts, scene):
+    """Every value visible: nothing to skip, same image, same sample count as naive."""
+    tf = sc.TransferFunction([(0, 0.2, 0.4, 0.9, 0.05), (1, 1, 1, 1, 0.3)])
+    cam = sc.Camera.orbit(scene, 15, 40)
+    img, ref = assert_same_as_naive(scene, tf, cam, 24, 24, name, opts, ert=1.0)
+    assert img.stats["samples"] == ref.stats["samples"]
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_all_empty_takes_no_samples(name, opts, scene):
+    tf = sc.TransferFunction([(0, 1, 1, 1, 0), (1, 1, 1, 1, 0)])
+    img = sc.render(scene, tf, sc.Camera.orbit(scene), 16, 16, index=name, background="white", **opts)
+    assert img.stats["samples"] == 0
+    assert np.array_equal(img.rgba, np.ones_like(img.rgba))
+
+
+@st.composite
+def random_scenes(draw):
+    shape = tuple(draw(st.integers(1, 40)) for _ in range(3))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    vol = sparse_volume(rng, shape, draw(st.integers(0, 6)),
+                        spacing=tuple(draw(st.sampled_from([0.6, 1.0, 1.7])) for _ in range(3)),
+                        origin=tuple(draw(st.sampled_from([0.0, -3.5, 7.25])) for _ in range(3)))
+    n = draw(st.integers(2, 5))
+    xs = sorted(draw(st.lists(st.floats(-0.1, 1.1), min_size=n, max_size=n)))
+    pts = [(x, draw(st.floats(0, 1)), draw(st.floats(0, 1)), draw(st.floats(0, 1)),
+            draw(st.sampled_from([0.0, 0.0, 0.2, 0.9, 1.0]))) for x in xs]
+    tf = sc.TransferFunction(pts, table_size=draw(st.sampled_from([256, 1024])))
+    proj = draw(st.sampled_from(["orthographic", "perspective"]))
+    if draw(st.booleans()):
+        az = draw(st.sampled_from([0.0, 90.0, 180.0, 270.0, 33.0, -71.0]))
+        el = draw(st.sampled_from([0.0, 90.0, -90.0, 12.0, -47.0]))
+        cam = sc.Camera.orbit(vol, az, el, projection=proj, zoom=draw(st.sampled_from([0.8, 1.0, 2.5])))
+    else:  # axis-parallel look-at, possibly from inside the volume
+        lo, hi = vol.bounds
+        eye = lo + (hi - lo) * np.array([draw(st.floats(-0.5, 1.5)) for _ in range(3)])
+        axis = draw(st.integers(0, 2))
+        d = np.zeros(3)
+        d[axis] = draw(st.sampled_from([-1.0, 1.0]))
+        up = (0.0, 0.0, 1.0) if axis != 2 else (0.0, 1.0, 0.0)
+        cam = sc.Camera.look_at(eye, eye + d, up, projection=proj, fov_y=80.0,
+                                ortho_height=max(vol.diagonal, 1.0))
+    kw = dict(dt=draw(st.sampled_from([0.3, 0.5, 1.0, 0.77])), ert=draw(st.sampled_from([1.0, 0.99, 0.6])))
+    return vol, tf, cam, kw
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@settings(max_examples=20, deadline=None)
+@given(data=random_scenes())
+def test_property_equal_naive(name, opts, data):
+    vol, tf, cam, kw = data
+    assert_same_as_naive(vol, tf, cam, 12, 10, name, opts, **kw)
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@pytest.mark.parametrize("view", [(30, 20), (0, 0)])
+def test_real_data_equal_naive(shared_data_dir, name, opts, view):
+    path = shared_data_dir / "mni152_t1_197x233x189_uint8.nrrd"
+    if not path.is_file():
+        pytest.skip(f"{path} not present")
+    vol = _load_cached(path)
+    tf = sc.TransferFunction.preset("bone", vol.value_range)
+    cam = sc.Camera.orbit(vol, *view, projection="orthographic")
+    img, ref = assert_same_as_naive(vol, tf, cam, 64, 64, name, opts, dt=1.0)
+    assert img.stats["samples"] < ref.stats["samples"]  # the brain has empty space around it
+
+
+_CACHE: dict = {}
+
+
+def _load_cached(path):
+    if path not in _CACHE:
+        _CACHE[path] = sc.load_volume(path)
+    return _CACHE[path]
