@@ -143,7 +143,9 @@ def test_bench_writes_records(monkeypatch, capsys, tmp_path):
     assert "sparsecast bench" in out
     records = json.loads(path.read_text())
     phases = {r["phase"] for r in records}
-    assert {"load", "brick_stats", "tf_classify", "build", "render"} <= phases
+    assert {"load", "brick_stats", "tf_classify", "build_cold", "rebuild", "render",
+            "irt_build", "irt_query", "prefix_query"} <= phases
+    assert {r["tf"] for r in records if r["phase"] == "render"} == {"default", "dense"}
     renders = [r for r in records if r["phase"] == "render"]
     assert renders and all(r["samples"] > 0 and r["ms"] > 0 for r in renders)
     for r in renders:
@@ -151,7 +153,11 @@ def test_bench_writes_records(monkeypatch, capsys, tmp_path):
         if r["method"] == "naive":
             assert r["speedup_vs_naive"] == pytest.approx(1.0)
     assert all(r["machine"]["cores"] for r in records)
-    assert all(r["dataset"] == "demo" for r in records)
+    assert {r["dataset"] for r in records} == {"demo", "tf-table"}
+    # Every exact index renders with ratios against naive from the same run.
+    methods = {r["method"] for r in renders}
+    assert methods == set(sc.available_indices())
+    assert all(r["speedup_vs_naive"] is not None for r in renders)
 
 
 def test_bench_rejects_unknown_names(monkeypatch, capsys):

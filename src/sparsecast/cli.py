@@ -99,6 +99,7 @@ def render(
     size: Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")] = "512x512",
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
     index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`).")] = "naive",
+    cell: Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")] = None,
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
@@ -122,7 +123,9 @@ def render(
     bg: str | list[float] = background
     if "," in background:
         bg = list(_parse_pair_n(background, "--background"))
-    img = do_render(vol, tfn, cam, width, height, dt=dt, index=index, ert=ert, shading=shade, background=bg)
+    index_options = {} if cell is None else {"cell": cell}
+    img = do_render(vol, tfn, cam, width, height, dt=dt, index=index, ert=ert, shading=shade,
+                    background=bg, **index_options)
     img.save(output)
     if array is not None:
         if array.suffix.lower() != ".npy":
@@ -199,7 +202,8 @@ def info(
 @app.command()
 def bench(
     dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default all available.")] = None,
-    method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name (repeatable); default all.")] = None,
+    method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
+    dense: Annotated[bool, typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space.")] = True,
     size: Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")] = "512x512",
     repeat: Annotated[int, typer.Option(help="Timed runs per measurement (median reported).")] = 5,
     warmup: Annotated[int, typer.Option(help="Untimed runs before timing.")] = 1,
@@ -208,7 +212,7 @@ def bench(
 ) -> None:
     """Time every index on the demo and the shared real volumes; print a table, write JSON."""
     from .bench import DATASETS, BenchConfig, format_table, run_benchmarks, write_json
-    from .index import available_indices
+    from .bench.harness import parse_method
 
     width, height = _parse_size(size)
     if repeat < 1 or warmup < 0:
@@ -217,12 +221,11 @@ def bench(
     for n in names:
         if n not in DATASETS:
             raise ParameterError(f"--dataset: unknown dataset {n!r}; expected one of {', '.join(DATASETS)}")
-    methods = method or available_indices()
+    methods = method or _default_bench_methods()
     for m in methods:
-        if m not in available_indices():
-            raise ParameterError(f"--method: unknown index {m!r}; expected one of {', '.join(available_indices())}")
+        parse_method(m)  # validates names and options up front
     cfg = BenchConfig(datasets=names, methods=methods, width=width, height=height,
-                      repeat=repeat, warmup=warmup, dt=dt)
+                      repeat=repeat, warmup=warmup, dt=dt, dense_tf=dense)
     with _err.status("benchmarking") as status:
         records = run_benchmarks(cfg, progress=lambda msg: status.update(f"benchmarking: {msg}"))
     # A table this wide is unreadable folded at 80 columns when piped to a file.
@@ -231,6 +234,12 @@ def bench(
     path = json_path or Path("bench-results") / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
     write_json(records, path)
     _out.print(f"wrote {len(records)} records to {path}")
+
+
+def _default_bench_methods() -> list[str]:
+    from .index import available_indices
+
+    return available_indices()
 
 
 def main() -> None:

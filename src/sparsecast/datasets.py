@@ -16,8 +16,8 @@ __all__ = ["nbody_blobs", "sphere_shell", "demo_volume"]
 def nbody_blobs(
     size: int | tuple[int, int, int] = 256,
     *,
-    n_clusters: int = 12,
-    blobs_per_cluster: int = 40,
+    n_clusters: int = 8,
+    blobs_per_cluster: int = 30,
     seed: int = 0,
     dtype=np.float32,
 ) -> Volume:
@@ -25,8 +25,9 @@ def nbody_blobs(
 
     Clusters are placed uniformly; blobs scatter around their cluster centre with a
     Gaussian spread, and blob widths and masses follow a power law (few big halos,
-    many small ones). Values are normalised to ``[0, 1]``; occupancy (fraction of
-    8^3 bricks holding a value above 0.1) is a few percent at the defaults.
+    many small ones). Values are normalised to ``[0, 1]``. At the defaults and
+    256^3, 1.4 % of the voxels exceed 0.1 and 5.5 % of the 8^3 bricks are non-empty
+    for the ``viridis`` preset (threshold 0.1).
 
     Parameters
     ----------

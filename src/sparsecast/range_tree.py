@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit, prange
 
 from .errors import ParameterError
+from .kernels.classify import entry_span
 
 __all__ = [
     "RangeMaxTree",
@@ -48,6 +49,7 @@ __all__ = [
     "range_max_many",
     "level_layout",
     "opacity_range_tree",
+    "classify_ranges_irt",
     "classify_irt",
     "is_empty_irt",
 ]
@@ -121,6 +123,22 @@ def range_max_many(flat, offsets, sizes, lo, hi, out):
     """
     for i in prange(lo.shape[0]):
         out[i] = range_max(flat, offsets, sizes, lo[i], hi[i])
+
+
+@njit(cache=True, parallel=True)
+def classify_ranges_irt(flat, offsets, sizes, v_lo, scale, vmin, vmax, out):
+    """IRT twin of :func:`sparsecast.kernels.classify.classify_ranges`.
+
+    ``out[i] = max opacity over the table entries that values in [vmin[i], vmax[i]]
+    touch > 0``, the entries coming from the same
+    :func:`~sparsecast.kernels.classify.entry_span` the prefix-count kernel uses
+    (``flat`` is an IRT over the opacity column; ``sizes[0]`` is the table size).
+    Inverted spans (``first > last``) count as empty.
+    """
+    n = sizes[0]
+    for i in prange(vmin.shape[0]):
+        first, last = entry_span(v_lo, scale, n, vmin[i], vmax[i])
+        out[i] = range_max(flat, offsets, sizes, first, last) > 0
 
 
 def level_layout(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -290,11 +308,12 @@ def _check_pair(tree: RangeMaxTree, tf) -> None:
 def classify_irt(tree: RangeMaxTree, tf, vmin, vmax) -> np.ndarray:
     """IRT version of :meth:`TransferFunction.classify`: True where ``[vmin, vmax]`` is *non-empty*.
 
-    Data values map to table entries through ``tf._entry_span`` (the same
-    floor/ceil of the clipped table position with the 1e-3 entry margin), and a
-    region is non-empty iff the maximum opacity over those entries is > 0, so the
-    answer equals ``tf.classify(vmin, vmax)`` element for element (inverted
-    ranges, ``vmin > vmax``, are empty in both).
+    Data values map to table entries with the same
+    :func:`sparsecast.kernels.classify.entry_span` that ``tf.classify`` (and
+    ``tf._entry_span``) use: floor/ceil of the clipped table position widened by
+    the 1e-3 entry margin. A region is non-empty iff the maximum opacity over
+    those entries is > 0, so for ``vmin <= vmax`` the answer equals
+    ``tf.classify(vmin, vmax)`` element for element.
 
     Parameters
     ----------
@@ -302,12 +321,30 @@ def classify_irt(tree: RangeMaxTree, tf, vmin, vmax) -> np.ndarray:
         From :func:`opacity_range_tree` of the same ``tf``.
     tf : TransferFunction
     vmin, vmax : array_like
-        Per-region value ranges (broadcast together).
+        Per-region value ranges (broadcast together), finite.
+
+    Returns
+    -------
+    ndarray of bool
+        Shape of the broadcast inputs.
+
+    Notes
+    -----
+    Inverted ranges (``vmin > vmax``) are reported empty here; ``tf.classify``
+    answers them from a negative prefix difference, so the two may differ there.
     """
     _check_pair(tree, tf)
-    first, last = tf._entry_span(vmin, vmax)
-    first, last = np.broadcast_arrays(np.asarray(first), np.asarray(last))
-    return tree._query_clamped(first, last) > 0
+    lo, hi = np.broadcast_arrays(np.asarray(vmin, np.float64), np.asarray(vmax, np.float64))
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ParameterError("vmin/vmax: expected finite values, found NaN or Inf")
+    shape = lo.shape
+    lo = np.ascontiguousarray(lo).ravel()
+    hi = np.ascontiguousarray(hi).ravel()
+    out = np.empty(lo.shape[0], np.bool_)
+    if lo.shape[0]:
+        classify_ranges_irt(tree.flat, tree.offsets, tree.sizes, float(tf.value_range[0]), float(tf.scale),
+                            lo, hi, out)
+    return out.reshape(shape)
 
 
 def is_empty_irt(tree: RangeMaxTree, tf, vmin, vmax):

@@ -8,31 +8,19 @@ the records are for ``sparsecast bench`` to print and write, never to assert on.
 
 from __future__ import annotations
 
-import statistics
-import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
 from ..range_tree import RangeMaxTree, classify_irt, opacity_range_tree
 from ..transfer import TransferFunction
+from .timing import median_ms
 
 __all__ = ["irt_build_times"]
 
 #: Number of (vmin, vmax) ranges classified per query measurement.
 N_QUERIES = 32768
-
-
-def _median_ms(fn: Callable[[], Any], repeat: int, warmup: int = 1) -> tuple[float, list[float]]:
-    for _ in range(warmup):
-        fn()
-    runs = []
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        fn()
-        runs.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(runs), runs
 
 
 def _bench_tf(n: int) -> TransferFunction:
@@ -92,12 +80,12 @@ def irt_build_times(
     for n in sizes:
         tf = _bench_tf(int(n))
         alpha = tf.table[:, 3]
-        ms, runs = _median_ms(lambda: RangeMaxTree(alpha), repeat)
+        ms, runs, _ = median_ms(lambda: RangeMaxTree(alpha), repeat)
         tree = opacity_range_tree(tf)
         records.append({"method": "irt", "phase": "irt_build", "table_size": int(n), "ms": ms,
                         "ms_runs": runs, "bytes": tree.nbytes, "levels": tree.levels})
-        ms_irt, runs_irt = _median_ms(lambda: classify_irt(tree, tf, vmin, vmax), repeat)
-        ms_pre, runs_pre = _median_ms(lambda: tf.classify(vmin, vmax), repeat)
+        ms_irt, runs_irt, _ = median_ms(lambda: classify_irt(tree, tf, vmin, vmax), repeat)
+        ms_pre, runs_pre, _ = median_ms(lambda: tf.classify(vmin, vmax), repeat)
         agree = bool(np.array_equal(classify_irt(tree, tf, vmin, vmax), tf.classify(vmin, vmax)))
         records.append({"method": "irt", "phase": "irt_query", "table_size": int(n), "ms": ms_irt,
                         "ms_runs": runs_irt, "bytes": tree.nbytes, "queries": int(n_queries),

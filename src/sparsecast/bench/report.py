@@ -22,7 +22,7 @@ def format_table(records: list[dict[str, Any]]):
 
     table = Table(title="sparsecast bench", show_lines=False)
     for col, justify in (
-        ("dataset", "left"), ("method", "left"), ("phase", "left"), ("view", "left"),
+        ("dataset", "left"), ("tf", "left"), ("method", "left"), ("phase", "left"), ("view", "left"),
         ("ms (median)", "right"), ("M samples", "right"), ("M samples/s", "right"),
         ("samples / oracle", "right"), ("vs naive", "right"), ("bytes", "right"), ("notes", "left"),
     ):
@@ -31,10 +31,12 @@ def format_table(records: list[dict[str, Any]]):
         notes = []
         if r.get("occupancy") is not None:
             notes.append(f"occupancy {100 * r['occupancy']:.1f}% of {r['bricks']} bricks")
+        if r.get("table_size") is not None:
+            notes.append(f"{r['table_size']} entries" + (f", {r['queries']} ranges" if r.get("queries") else ""))
         if r["phase"] == "render":
             notes.append(f"{r['width']}x{r['height']} dt={r['dt']:g}")
         table.add_row(
-            r["dataset"] or "", r["method"] or "", r["phase"] or "", r["view"] or "",
+            r["dataset"] or "", r.get("tf") or "", r["method"] or "", r["phase"] or "", r["view"] or "",
             _fmt(r["ms"], ".3f" if (r["ms"] or 0) < 10 else ".1f"),
             _fmt(None if r["samples"] is None else r["samples"] / 1e6, ".2f"),
             _fmt(r.get("msamples_per_s"), ".1f"),
