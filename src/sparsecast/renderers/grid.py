@@ -3,8 +3,8 @@
 Exactness: inside a non-empty cell the marcher visits the *global* lattice indices
 ``k`` whose ``t_k = k * dt`` falls in the cell's ray interval, through the same
 :func:`~sparsecast.kernels.march.march_segment` as the naive marcher; consecutive
-cells share their boundary parameter and ``k_next`` drops a sample that lands
-exactly on a boundary from the second cell. A sample that rounding attributes to a
+cells share their boundary parameter, and runs of consecutive non-empty cells
+are marched as one segment, so no sample is taken twice or missed between cells. A sample that rounding attributes to a
 neighbouring cell is within one voxel of it, which the cells' one-voxel apron
 covers, so skipping a cell classified empty never drops a sample of non-zero
 opacity. Hence images equal ``index="naive"`` up to float rounding.
@@ -60,19 +60,42 @@ def grid_tile(
                 cx, sx, tmx, tdx = dda_axis(ox, dx, t_enter, cell, ncx)
                 cy, sy, tmy, tdy = dda_axis(oy, dy, t_enter, cell, ncy)
                 cz, sz, tmz, tdz = dda_axis(oz, dz, t_enter, cell, ncz)
-                k_next = -(1 << 62)
+                # Runs of consecutive non-empty cells are marched as one segment:
+                # fewer restarts of the sampling loop (this matters when little is
+                # empty), and the same samples, since the lattice is global.
+                seg_open = False
+                seg_t0 = 0.0
                 while True:
-                    t_exit = min(min(tmx, tmy), min(tmz, t_far))
+                    # The axis whose boundary comes first; leaving the grid there
+                    # (possible a rounding error before t_far) ends the ray too.
+                    if tmx <= tmy and tmx <= tmz:
+                        axis = 0
+                        t_exit = tmx
+                        leaves = cx + sx < 0 or cx + sx >= ncx
+                    elif tmy <= tmz:
+                        axis = 1
+                        t_exit = tmy
+                        leaves = cy + sy < 0 or cy + sy >= ncy
+                    else:
+                        axis = 2
+                        t_exit = tmz
+                        leaves = cz + sz < 0 or cz + sz >= ncz
+                    last = leaves or t_exit >= t_far
+                    if last:
+                        t_exit = t_far
                     if use_minmax:
                         full = not range_is_empty(prefix, v_lo, scale,
                                                   cell_min[cz, cy, cx], cell_max[cz, cy, cx])
                     else:
                         full = occupied[cz, cy, cx] != 0
-                    if full:
-                        k0, k1 = lattice_range(t_enter, t_exit, dt)
-                        k0 = max(k0, k_next)
+                    if full and not seg_open:
+                        seg_open = True
+                        seg_t0 = t_enter
+                    if seg_open and (not full or last):
+                        seg_open = False
+                        k0, k1 = lattice_range(seg_t0, t_exit if full else t_enter, dt)
                         if k0 <= k1:
-                            r, g, b, a, k_next, ns, nne = march_segment(
+                            r, g, b, a, _, ns, nne = march_segment(
                                 flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
                                 wdx, wdy, wdz, inv_spacing, dt, k0, k1, r, g, b, a, ert, shading,
                             )
@@ -80,27 +103,19 @@ def grid_tile(
                             n_nonempty += nne
                             if a >= ert:
                                 break
-                    if t_exit >= t_far:
+                    if last:
                         break
-                    # Step into the neighbour across the nearest boundary.
-                    if tmx <= tmy and tmx <= tmz:
+                    # Step into the neighbour across that boundary.
+                    t_enter = t_exit
+                    if axis == 0:
                         cx += sx
-                        t_enter = tmx
                         tmx += tdx
-                        if cx < 0 or cx >= ncx:
-                            break
-                    elif tmy <= tmz:
+                    elif axis == 1:
                         cy += sy
-                        t_enter = tmy
                         tmy += tdy
-                        if cy < 0 or cy >= ncy:
-                            break
                     else:
                         cz += sz
-                        t_enter = tmz
                         tmz += tdz
-                        if cz < 0 or cz >= ncz:
-                            break
             write_pixel(out_rgba, py, px, r, g, b, a, background)
             out_samples[py, px] = n_samples
             out_nonempty[py, px] = n_nonempty
