@@ -335,7 +335,9 @@ def _colormap_points(name: str, threshold: float, max_opacity: float) -> np.ndar
 
     cmap = matplotlib.colormaps[name]
     xs = np.linspace(threshold, 1.0, 32)
-    rgb = np.asarray(cmap(np.linspace(0.0, 1.0, 32)))[:, :3]
+    # Skip the darkest fifth of the colour map: against a black background the
+    # faint, barely opaque values would otherwise be invisible twice over.
+    rgb = np.asarray(cmap(np.linspace(0.2, 1.0, 32)))[:, :3]
     alpha = max_opacity * (xs - threshold) / (1.0 - threshold)
     body = np.column_stack([xs, rgb, alpha])
     # Fully transparent from 0 to the threshold.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from .ray import lattice_range
 from .sample import gradient, trilinear
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
@@ -101,3 +102,32 @@ def march_segment(
             acc_a += w
         k += 1
     return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
+
+
+@njit(cache=True, inline="always")
+def march_interval(
+    flat, nx, ny, nz, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, t0, t1, k_next,
+    acc_r, acc_g, acc_b, acc_a,
+    ert, shading,
+):
+    """Composite the lattice samples with ``t0 <= k * dt <= t1`` and ``k >= k_next``.
+
+    The building block of every empty-space-skipping renderer: walk the non-empty
+    regions (cells, leaves, bricks) front to back and call this for each region's
+    ray interval, passing the returned ``k_next`` on. ``k_next`` makes a sample that
+    lands exactly on a shared face count once; regions must not overlap otherwise.
+    Arguments and returns are those of :func:`march_segment`, with ``k_next``
+    (the first lattice index not yet visited) in place of ``k_end + 1``.
+    """
+    k0, k1 = lattice_range(t0, t1, dt)
+    if k0 < k_next:
+        k0 = k_next
+    if k0 > k1:
+        return acc_r, acc_g, acc_b, acc_a, k_next, 0, 0
+    return march_segment(
+        flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
+        inv_spacing, dt, k0, k1, acc_r, acc_g, acc_b, acc_a, ert, shading,
+    )

@@ -18,8 +18,8 @@ from numba import njit, prange
 from ..kernels.camera import index_space_ray
 from ..kernels.classify import range_is_empty
 from ..kernels.dda import dda_axis
-from ..kernels.march import march_segment
-from ..kernels.ray import clip_box, lattice_range
+from ..kernels.march import march_interval
+from ..kernels.ray import clip_box
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds, tile_count
 from .setup import RenderSetup, register_marcher
@@ -65,6 +65,7 @@ def grid_tile(
                 # empty), and the same samples, since the lattice is global.
                 seg_open = False
                 seg_t0 = 0.0
+                k_next = -(1 << 62)
                 while True:
                     # The axis whose boundary comes first; leaving the grid there
                     # (possible a rounding error before t_far) ends the ray too.
@@ -93,16 +94,15 @@ def grid_tile(
                         seg_t0 = t_enter
                     if seg_open and (not full or last):
                         seg_open = False
-                        k0, k1 = lattice_range(seg_t0, t_exit if full else t_enter, dt)
-                        if k0 <= k1:
-                            r, g, b, a, _, ns, nne = march_segment(
-                                flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
-                                wdx, wdy, wdz, inv_spacing, dt, k0, k1, r, g, b, a, ert, shading,
-                            )
-                            n_samples += ns
-                            n_nonempty += nne
-                            if a >= ert:
-                                break
+                        r, g, b, a, k_next, ns, nne = march_interval(
+                            flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+                            wdx, wdy, wdz, inv_spacing, dt, seg_t0, t_exit if full else t_enter,
+                            k_next, r, g, b, a, ert, shading,
+                        )
+                        n_samples += ns
+                        n_nonempty += nne
+                        if a >= ert:
+                            break
                     if last:
                         break
                     # Step into the neighbour across that boundary.
