@@ -19,6 +19,13 @@ from sparsecast.index.registry import _INDICES
 INDEX_OPTIONS: dict[str, list[dict]] = {
     "grid-mm": [{"cell": 4}, {"cell": 8}, {"cell": 16}],
     "grid-pc": [{"cell": 4}, {"cell": 8}, {"cell": 32}],
+    # issue 4 (k-d trees, hybrid grids): edit only these lines
+    "kdtree-shallow": [{}],
+    "kdtree-deep": [{}],
+    "hybrid-pc": [{}],
+    "hybrid-mm": [{}],
+    # issue 5 (LBVH): edit only this line
+    "lbvh": [{}],
 }
 
 EXACT = [n for n in sc.available_indices() if n != "naive" and _INDICES[n].exact]

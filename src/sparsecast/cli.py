@@ -201,7 +201,7 @@ def info(
 
 @app.command()
 def bench(
-    dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default all available.")] = None,
+    dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the demo and every shared volume present.")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[bool, typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space.")] = True,
     size: Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")] = "512x512",
@@ -217,7 +217,7 @@ def bench(
     width, height = _parse_size(size)
     if repeat < 1 or warmup < 0:
         raise ParameterError(f"--repeat must be >= 1 and --warmup >= 0, got {repeat}, {warmup}")
-    names = dataset or list(DATASETS)
+    names = dataset or [n for n, d in DATASETS.items() if d.default]
     for n in names:
         if n not in DATASETS:
             raise ParameterError(f"--dataset: unknown dataset {n!r}; expected one of {', '.join(DATASETS)}")

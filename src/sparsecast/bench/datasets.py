@@ -41,6 +41,7 @@ class BenchDataset:
     load: Callable[[], Volume]
     make_tf: Callable[[Volume], TransferFunction]
     file: str | None = None  # file name under the shared data folder, if any
+    default: bool = True  # run by a plain `sparsecast bench`; False: only when named
 
     def available(self) -> bool:
         if self.file is None:

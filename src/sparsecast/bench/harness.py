@@ -53,7 +53,7 @@ class BenchConfig:
         entries against the prefix-count query.
     """
 
-    datasets: list[str] = field(default_factory=lambda: list(DATASETS))
+    datasets: list[str] = field(default_factory=lambda: [n for n, d in DATASETS.items() if d.default])
     methods: list[str] = field(default_factory=available_indices)
     width: int = 512
     height: int = 512
