@@ -850,3 +850,11 @@ def test_mni152_matches_reference(shared_data_dir):
         cam = Camera.orbit(vol, az, el, projection="orthographic")
         img, _ = assert_matches_reference(vol, tf, cam, 48, 48, dt=2.0)
         assert img.rgba[..., 3].max() > 0.5  # the head is visible
+
+
+def test_classify_rejects_inverted_or_nan_ranges():
+    tf = TransferFunction.preset("viridis", (0.0, 1.0))
+    with pytest.raises(ParameterError, match="vmin > vmax"):
+        tf.classify(np.array([0.5]), np.array([0.2]))
+    with pytest.raises(ParameterError, match="NaN"):
+        tf.classify(np.array([np.nan]), np.array([0.2]))

@@ -29,6 +29,12 @@ FileArg = Annotated[
 TfOpt = Annotated[
     str, typer.Option("--tf", help="Preset name (see `sparsecast info --presets`) or a TF .json file.")
 ]
+# Options shared by the commands that load and classify a volume.
+TfRangeOpt = Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans (default: the volume's).")]
+ThresholdOpt = Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction of the range.")]
+DimsOpt = Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")]
+DtypeOpt = Annotated[Optional[str], typer.Option(help="Raw files: uint8, uint16, int16, float32, float64.")]
+SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")]
 
 
 def _parse_size(size: str) -> tuple[int, int]:
@@ -90,8 +96,8 @@ def _make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):
 def render(
     file: FileArg = None,
     tf: TfOpt = "viridis",
-    tf_range: Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans (default: the volume's).")] = None,
-    threshold: Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction of the range.")] = 0.1,
+    tf_range: TfRangeOpt = None,
+    threshold: ThresholdOpt = 0.1,
     azimuth: Annotated[float, typer.Option(help="Orbit azimuth in degrees.")] = 30.0,
     elevation: Annotated[float, typer.Option(help="Orbit elevation in degrees.")] = 20.0,
     projection: Annotated[str, typer.Option(help="perspective or orthographic.")] = "perspective",
@@ -105,9 +111,9 @@ def render(
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
     output: Annotated[Path, typer.Option("-o", "--output", help="Image file (.png, .jpg, .tif, or .npy).")] = Path("sparsecast.png"),
     array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
-    dims: Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")] = None,
-    dtype: Annotated[Optional[str], typer.Option(help="Raw files: uint8, uint16, int16, float32, float64.")] = None,
-    spacing: Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")] = None,
+    dims: DimsOpt = None,
+    dtype: DtypeOpt = None,
+    spacing: SpacingOpt = None,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
     from .camera import Camera
@@ -160,12 +166,12 @@ def _histogram_sketch(data: np.ndarray, bins: int = 48) -> str:
 def info(
     file: FileArg = None,
     tf: TfOpt = "viridis",
-    tf_range: Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans.")] = None,
-    threshold: Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction.")] = 0.1,
+    tf_range: TfRangeOpt = None,
+    threshold: ThresholdOpt = 0.1,
     brick_size: Annotated[int, typer.Option(help="Brick edge in cells for the occupancy figure.")] = 8,
-    dims: Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")] = None,
-    dtype: Annotated[Optional[str], typer.Option(help="Raw files: dtype.")] = None,
-    spacing: Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")] = None,
+    dims: DimsOpt = None,
+    dtype: DtypeOpt = None,
+    spacing: SpacingOpt = None,
     presets: Annotated[bool, typer.Option("--presets", help="List TF presets and exit.")] = False,
     indices: Annotated[bool, typer.Option("--indices", help="List spatial indices and exit.")] = False,
 ) -> None:

@@ -243,6 +243,9 @@ class TransferFunction:
         hi = np.ascontiguousarray(vmax, dtype=np.float64)
         if lo.shape != hi.shape:
             raise ParameterError(f"vmin/vmax: shapes differ, {lo.shape} vs {hi.shape}")
+        if not np.all(lo <= hi):  # also false for NaN
+            bad = int(np.count_nonzero(~(lo <= hi)))
+            raise ParameterError(f"vmin/vmax: {bad} range(s) have vmin > vmax or NaN; expected vmin <= vmax")
         out = np.empty(lo.size, np.bool_)
         classify_ranges(self._prefix, float(self.value_range[0]), self.scale, lo.ravel(), hi.ravel(), out)
         return out.reshape(lo.shape)
