@@ -48,3 +48,11 @@ def test_registry_demo_is_always_available():
 def test_shared_dataset_skips_cleanly_without_data(monkeypatch, tmp_path):
     monkeypatch.setenv("SPARSECAST_DATA", str(tmp_path))  # an empty folder
     assert not DATASETS["mni152"].available()
+
+
+def test_volume_does_not_freeze_the_callers_array():
+    arr = np.zeros((3, 4, 5), np.float32)
+    vol = sc.Volume(arr)
+    assert arr.flags.writeable          # the caller's array is untouched...
+    assert not vol.data.flags.writeable  # ...the volume's view is read-only
+    assert np.shares_memory(arr, vol.data)  # and nothing was copied

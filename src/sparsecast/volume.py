@@ -127,8 +127,10 @@ class Volume:
         arr = _coerce_dtype(arr, name)
         if arr.dtype.kind == "f":
             arr = _check_finite(arr, name, nonfinite)
-        self._data = np.ascontiguousarray(arr)
-        self._data.flags.writeable = False  # indices cache derived data; keep it valid
+        # A read-only *view*: cached brick statistics and indices must stay valid,
+        # but the caller's own array keeps its flags (no copy when contiguous).
+        self._data = np.ascontiguousarray(arr).view()
+        self._data.flags.writeable = False
         self.spacing = _as_triple(spacing, "spacing", positive=True)
         self.origin = _as_triple(origin, "origin", positive=False)
         self.name = name
