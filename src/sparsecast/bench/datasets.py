@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..datasets import demo_volume
+from ..datasets import demo_volume, nbody_blobs
 from ..io import load_volume
 from ..transfer import TransferFunction
 from ..volume import Volume
@@ -69,6 +69,22 @@ DATASETS: dict[str, BenchDataset] = {
             demo_volume,
             lambda v: TransferFunction.preset("viridis", v.value_range),
         ),
+        # Scale study (issue 5, the LBVH paper's Fig. 4): the demo field at other
+        # sizes, same TF; opt-in (`sparsecast bench -d demo-128 -d demo-512`).
+        BenchDataset(
+            "demo-128",
+            "the demo's n-body-like Gaussian blobs at 128^3 float32 (scale study)",
+            lambda: nbody_blobs(128),
+            lambda v: TransferFunction.preset("viridis", v.value_range),
+            default=False,
+        ),
+        BenchDataset(
+            "demo-512",
+            "the demo's n-body-like Gaussian blobs at 512^3 float32 (scale study, 512 MiB)",
+            lambda: nbody_blobs(512),
+            lambda v: TransferFunction.preset("viridis", v.value_range),
+            default=False,
+        ),
         BenchDataset(
             "mni152",
             "MNI152 T1 brain template, 197x233x189 uint8 (shared data)",
@@ -79,3 +95,53 @@ DATASETS: dict[str, BenchDataset] = {
         ),
     )
 }
+
+
+# -- issue 4: the synthetic sweeps of Zellmann et al. 2018, Fig. 5 (opt-in) -----------
+def random_clusters(n: int, n_clusters: int, radius: float, seed: int = 7) -> Volume:
+    """``n``^3 float32 volume of ``n_clusters`` balls of random voxel values in
+    [0.2, 1] (radius ``radius`` voxels, random centres), zero elsewhere."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    data = np.zeros((n, n, n), np.float32)
+    r = max(float(radius), 0.5)
+    ri = int(np.ceil(r))
+    off = np.arange(-ri, ri + 1)
+    dz, dy, dx = np.meshgrid(off, off, off, indexing="ij")
+    ball = dz * dz + dy * dy + dx * dx <= r * r
+    pz, py, px = (a[ball] for a in (dz, dy, dx))
+    for _ in range(n_clusters):
+        c = rng.integers(0, n, 3)
+        z, y, x = pz + c[0], py + c[1], px + c[2]
+        keep = (z >= 0) & (z < n) & (y >= 0) & (y < n) & (x >= 0) & (x < n)
+        data[z[keep], y[keep], x[keep]] = rng.uniform(0.2, 1.0, int(keep.sum())).astype(np.float32)
+    return Volume(data)
+
+
+def _cluster_tf(v: Volume) -> TransferFunction:
+    return TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
+
+
+def _fig5_datasets() -> list[BenchDataset]:
+    out = []
+    for n in (256, 512):
+        for frac in (0.03, 0.06, 0.12, 0.2, 0.3):  # (a) three clusters growing in size
+            r = frac * n
+            out.append(BenchDataset(
+                f"fig5a-{n}-r{int(round(frac * 100)):02d}",
+                f"three random-voxel balls of radius {r:.0f} in {n}^3 (Fig. 5a sweep)",
+                lambda n=n, r=r: random_clusters(n, 3, r),
+                _cluster_tf, default=False,
+            ))
+        for k in (1, 8, 64, 512, 4096):  # (b) more and more fixed-size clusters
+            out.append(BenchDataset(
+                f"fig5b-{n}-k{k:04d}",
+                f"{k} random-voxel balls of radius {n / 32:.0f} in {n}^3 (Fig. 5b sweep)",
+                lambda n=n, k=k: random_clusters(n, k, n / 32),
+                _cluster_tf, default=False,
+            ))
+    return out
+
+
+DATASETS.update({d.name: d for d in _fig5_datasets()})

@@ -1,0 +1,556 @@
+"""Numba build kernels of the k-d trees: cell classification, partial summed-volume
+tables (SVTs) and the greedy top-down split.
+
+Cells
+-----
+Cell ``(cz, cy, cx)`` is the unit cube between voxels ``c`` and ``c + 1`` on each
+axis (index space), clipped to the domain; an axis of ``n`` voxels has
+``max(n - 1, 1)`` cells. A cell is *occupied* when the TF opacity is non-zero for
+some value in ``[min, max]`` of the voxels ``c - 1 .. c + 2`` on each axis: its own
+eight corners plus the one-voxel apron (DESIGN.md "Emptiness"). Every cell whose
+own corner range is non-empty is therefore occupied together with its 26
+neighbours, so a lattice sample that rounding puts an ulp outside its cell is
+still inside the occupied set.
+
+Partial SVTs
+------------
+Cells are grouped in bricks of ``SVT_BRICK = 32`` cells per edge. For every brick
+with at least one occupied cell, ``svt[slot]`` (shape ``(33, 33, 33)``, uint16)
+holds the inclusive 3-D prefix counts of its occupied cells with a zero pad
+(``svt[s, z + 1, y + 1, x + 1]`` = occupied cells of the brick in local
+``[0..z] x [0..y] x [0..x]``), so the occupied count of any sub-box of a brick
+takes 8 look-ups. ``bslot[bz, by, bx]`` is the slot (-1: empty brick),
+``bcount`` the brick's count and ``bbox[bz, by, bx]`` its tight box
+``(x0, y0, z0, x1, y1, z1)`` (global cells, half-open). The tight box of the
+occupied cells of any box is the union of per-brick answers: a brick whose tight
+box lies inside the query contributes it as is, a fully occupied brick
+contributes the intersection, any other overlapping brick shrinks the
+intersection face by face with binary searches on its SVT.
+
+Boxes are ``(x0, y0, z0, x1, y1, z1)`` in cells, half-open, axis 0 = x.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.classify import entry_span, range_is_empty
+
+SVT_BRICK = 32
+#: cells per brick edge of the coarse classification pre-pass (Volume.brick_stats)
+CLASSIFY_BRICK = 8
+
+
+# --------------------------------------------------------------------------- classify
+@njit(cache=True, parallel=True)
+def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, occ):
+    """Write the occupancy of every cell (see the module docstring) into ``occ``.
+
+    ``bricks`` lists the flat numbers of the 8^3 bricks (``CLASSIFY_BRICK``) that
+    the volume's brick ranges with apron (``Volume.brick_stats(8)``) classify
+    non-empty: brick ``b`` covers cells ``8b .. 8b+7`` whose apron windows
+    ``c-1 .. c+2`` all lie in the brick's apron window ``8b-1 .. 8b+9``, so an
+    empty brick has only empty cells and its voxels are never read. ``occ`` must
+    be zero on entry; ``occ[i]`` (8, 8, 8) receives the cells of brick
+    ``bricks[i]`` (cells outside the volume stay 0). ``bvmin/bvmax[i]`` is that
+    brick's apron range: when every TF entry it spans is opaque, every cell (whose
+    range lies inside) is occupied and no voxel is read. Otherwise each cell's range is reduced axis by axis (x, y, z) over its
+    4-voxel windows.
+    """
+    nz, ny, nx = data.shape
+    flat = data.reshape(nz * ny * nx)
+    B = CLASSIFY_BRICK
+    nby = -(-ncy // B)
+    nbx = -(-ncx // B)
+    n = bricks.shape[0]
+    chunk = 16
+    for ci in prange((n + chunk - 1) // chunk):
+        mx_lo = np.empty((B + 3, B + 3, B), np.float64)
+        mx_hi = np.empty((B + 3, B + 3, B), np.float64)
+        my_lo = np.empty((B + 3, B, B), np.float64)
+        my_hi = np.empty((B + 3, B, B), np.float64)
+        for bi in range(ci * chunk, min(ci * chunk + chunk, n)):
+            fb = bricks[bi]
+            bz = fb // (nby * nbx)
+            rem = fb - bz * nby * nbx
+            by = rem // nbx
+            bx = rem - by * nbx
+            cz0 = bz * B
+            cy0 = by * B
+            cx0 = bx * B
+            cz1 = min(cz0 + B, ncz)
+            cy1 = min(cy0 + B, ncy)
+            cx1 = min(cx0 + B, ncx)
+            first, last = entry_span(v_lo, scale, prefix.shape[0] - 1, bvmin[bi], bvmax[bi])
+            if prefix[last + 1] - prefix[first] == last - first + 1:
+                for z in range(cz1 - cz0):
+                    for y in range(cy1 - cy0):
+                        for x in range(cx1 - cx0):
+                            occ[bi, z, y, x] = 1
+                continue
+            wz0 = max(cz0 - 1, 0)
+            wy0 = max(cy0 - 1, 0)
+            wz1 = min(cz1 + 1, nz - 1)
+            wy1 = min(cy1 + 1, ny - 1)
+            lz = wz1 - wz0 + 1
+            ly = wy1 - wy0 + 1
+            for zz in range(lz):
+                for yy in range(ly):
+                    base = ((wz0 + zz) * ny + (wy0 + yy)) * nx
+                    for cx in range(cx0, cx1):
+                        i0 = max(cx - 1, 0)
+                        i1 = min(cx + 2, nx - 1)
+                        lo = np.float64(flat[base + i0])
+                        hi = lo
+                        for i in range(i0 + 1, i1 + 1):
+                            v = np.float64(flat[base + i])
+                            if v < lo:
+                                lo = v
+                            if v > hi:
+                                hi = v
+                        mx_lo[zz, yy, cx - cx0] = lo
+                        mx_hi[zz, yy, cx - cx0] = hi
+            for zz in range(lz):
+                for cy in range(cy0, cy1):
+                    j0 = max(cy - 1, 0) - wy0
+                    j1 = min(cy + 2, ny - 1) - wy0
+                    for xx in range(cx1 - cx0):
+                        lo = mx_lo[zz, j0, xx]
+                        hi = mx_hi[zz, j0, xx]
+                        for j in range(j0 + 1, j1 + 1):
+                            if mx_lo[zz, j, xx] < lo:
+                                lo = mx_lo[zz, j, xx]
+                            if mx_hi[zz, j, xx] > hi:
+                                hi = mx_hi[zz, j, xx]
+                        my_lo[zz, cy - cy0, xx] = lo
+                        my_hi[zz, cy - cy0, xx] = hi
+            for cz in range(cz0, cz1):
+                k0 = max(cz - 1, 0) - wz0
+                k1 = min(cz + 2, nz - 1) - wz0
+                for yy in range(cy1 - cy0):
+                    for xx in range(cx1 - cx0):
+                        lo = my_lo[k0, yy, xx]
+                        hi = my_hi[k0, yy, xx]
+                        for k in range(k0 + 1, k1 + 1):
+                            if my_lo[k, yy, xx] < lo:
+                                lo = my_lo[k, yy, xx]
+                            if my_hi[k, yy, xx] > hi:
+                                hi = my_hi[k, yy, xx]
+                        if not range_is_empty(prefix, v_lo, scale, lo, hi):
+                            occ[bi, cz - cz0, yy, xx] = 1
+
+
+# --------------------------------------------------------------------------- SVTs
+@njit(cache=True, inline="always")
+def _occ_at(bmap, occ, z, y, x):
+    """Occupancy of cell ``(z, y, x)`` stored per 8^3 brick (``bmap``: row or -1)."""
+    b = bmap[z >> 3, y >> 3, x >> 3]
+    if b < 0:
+        return 0
+    return occ[b, z & 7, y & 7, x & 7]
+
+
+@njit(cache=True, parallel=True)
+def brick_counts(bmap, occ, ncz, ncy, ncx, bcount, bbox):
+    """Per 32^3 brick: occupied count and tight box (empty bricks: count 0).
+
+    Cells live in per-8^3-brick arrays (``occ[bmap[z>>3, y>>3, x>>3]]``); 8^3
+    bricks without a row are empty and not visited.
+    """
+    nbz, nby, nbx = bcount.shape
+    S = SVT_BRICK
+    F = S // CLASSIFY_BRICK
+    B = CLASSIFY_BRICK
+    for flat in prange(nbz * nby * nbx):
+        bz = flat // (nby * nbx)
+        rem = flat - bz * nby * nbx
+        by = rem // nbx
+        bx = rem - by * nbx
+        n = 0
+        lx = 1 << 30
+        ly = 1 << 30
+        lz = 1 << 30
+        hx = -1
+        hy = -1
+        hz = -1
+        for sz in range(bz * F, min(bz * F + F, bmap.shape[0])):
+            for sy in range(by * F, min(by * F + F, bmap.shape[1])):
+                for sx in range(bx * F, min(bx * F + F, bmap.shape[2])):
+                    b = bmap[sz, sy, sx]
+                    if b < 0:
+                        continue
+                    for z in range(B):
+                        for y in range(B):
+                            for x in range(B):
+                                if occ[b, z, y, x]:
+                                    n += 1
+                                    gz = sz * B + z
+                                    gy = sy * B + y
+                                    gx = sx * B + x
+                                    lx = min(lx, gx)
+                                    ly = min(ly, gy)
+                                    lz = min(lz, gz)
+                                    hx = max(hx, gx + 1)
+                                    hy = max(hy, gy + 1)
+                                    hz = max(hz, gz + 1)
+        bcount[bz, by, bx] = n
+        if n == 0:
+            lx = ly = lz = hx = hy = hz = 0
+        bbox[bz, by, bx, 0] = lx
+        bbox[bz, by, bx, 1] = ly
+        bbox[bz, by, bx, 2] = lz
+        bbox[bz, by, bx, 3] = hx
+        bbox[bz, by, bx, 4] = hy
+        bbox[bz, by, bx, 5] = hz
+
+
+@njit(cache=True, parallel=True)
+def build_svts(bmap, occ, bslot, svt):
+    """Fill the partial SVT of every non-empty 32^3 brick (parallel over bricks)."""
+    nbz, nby, nbx = bslot.shape
+    S = SVT_BRICK
+    for flat in prange(nbz * nby * nbx):
+        bz = flat // (nby * nbx)
+        rem = flat - bz * nby * nbx
+        by = rem // nbx
+        bx = rem - by * nbx
+        s = bslot[bz, by, bx]
+        if s < 0:
+            continue
+        z0 = bz * S
+        y0 = by * S
+        x0 = bx * S
+        t = svt[s]
+        t[0, :, :] = 0
+        t[:, 0, :] = 0
+        t[:, :, 0] = 0
+        mz = bmap.shape[0] * 8
+        my = bmap.shape[1] * 8
+        mx = bmap.shape[2] * 8
+        for z in range(S):
+            for y in range(S):
+                row = 0
+                for x in range(S):
+                    gz = z0 + z
+                    gy = y0 + y
+                    gx = x0 + x
+                    if gz < mz and gy < my and gx < mx:
+                        row += _occ_at(bmap, occ, gz, gy, gx)
+                    t[z + 1, y + 1, x + 1] = row + t[z + 1, y, x + 1]
+            for y in range(S):
+                for x in range(S):
+                    t[z + 1, y + 1, x + 1] += t[z, y + 1, x + 1]
+
+
+@njit(cache=True, inline="always")
+def _svt_count(t, x0, y0, z0, x1, y1, z1):
+    """Occupied cells of local half-open box ``[x0, x1) x [y0, y1) x [z0, z1)``."""
+    return (
+        np.int64(t[z1, y1, x1]) - np.int64(t[z0, y1, x1]) - np.int64(t[z1, y0, x1])
+        - np.int64(t[z1, y1, x0]) + np.int64(t[z0, y0, x1]) + np.int64(t[z0, y1, x0])
+        + np.int64(t[z1, y0, x0]) - np.int64(t[z0, y0, x0])
+    )
+
+
+@njit(cache=True)
+def _shrink(t, b):
+    """Shrink local box ``b`` (6 ints, modified in place; count > 0) to its tight box."""
+    for ax in range(3):
+        keep_hi = b[ax + 3]
+        # low face: smallest c with count([b[ax], c + 1)) > 0
+        lo = b[ax]
+        hi = keep_hi - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            b[ax + 3] = mid + 1
+            n = _svt_count(t, b[0], b[1], b[2], b[3], b[4], b[5])
+            if n > 0:
+                hi = mid
+            else:
+                lo = mid + 1
+        b[ax + 3] = keep_hi
+        b[ax] = lo
+        keep_lo = lo
+        # high face: largest c with count([c, b[ax+3])) > 0
+        lo = keep_lo
+        hi = keep_hi - 1
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            b[ax] = mid
+            n = _svt_count(t, b[0], b[1], b[2], b[3], b[4], b[5])
+            if n > 0:
+                lo = mid
+            else:
+                hi = mid - 1
+        b[ax] = keep_lo
+        b[ax + 3] = lo + 1
+
+
+@njit(cache=True)
+def tight_box(svt, bslot, bcount, bbox, q, out, work):
+    """Tight box of the occupied cells in box ``q``.
+
+    Writes the tight box into ``out`` (6 ints) and returns True when ``q`` holds an
+    occupied cell. ``work`` is scratch of 6 ints.
+    """
+    S = SVT_BRICK
+    found = False
+    out[0] = 1 << 30
+    out[1] = 1 << 30
+    out[2] = 1 << 30
+    out[3] = -1
+    out[4] = -1
+    out[5] = -1
+    for bz in range(q[2] // S, (q[5] - 1) // S + 1):
+        for by in range(q[1] // S, (q[4] - 1) // S + 1):
+            for bx in range(q[0] // S, (q[3] - 1) // S + 1):
+                n = bcount[bz, by, bx]
+                if n == 0:
+                    continue
+                # intersection of the query with the brick's tight box
+                inside = True
+                empty = False
+                for a in range(3):
+                    lo = max(q[a], bbox[bz, by, bx, a])
+                    hi = min(q[a + 3], bbox[bz, by, bx, a + 3])
+                    if lo >= hi:
+                        empty = True
+                        break
+                    if lo != bbox[bz, by, bx, a] or hi != bbox[bz, by, bx, a + 3]:
+                        inside = False
+                    work[a] = lo
+                    work[a + 3] = hi
+                if empty:
+                    continue
+                if not inside:
+                    bb_vol = np.int64(1)
+                    for a in range(3):
+                        bb_vol *= bbox[bz, by, bx, a + 3] - bbox[bz, by, bx, a]
+                    if n != bb_vol:  # not fully occupied: search the SVT
+                        t = svt[bslot[bz, by, bx]]
+                        ox = bx * S
+                        oy = by * S
+                        oz = bz * S
+                        work[0] -= ox
+                        work[3] -= ox
+                        work[1] -= oy
+                        work[4] -= oy
+                        work[2] -= oz
+                        work[5] -= oz
+                        if _svt_count(t, work[0], work[1], work[2], work[3], work[4], work[5]) == 0:
+                            continue
+                        _shrink(t, work)
+                        work[0] += ox
+                        work[3] += ox
+                        work[1] += oy
+                        work[4] += oy
+                        work[2] += oz
+                        work[5] += oz
+                found = True
+                for a in range(3):
+                    out[a] = min(out[a], work[a])
+                    out[a + 3] = max(out[a + 3], work[a + 3])
+    return found
+
+
+@njit(cache=True)
+def box_count(svt, bslot, bcount, bbox, q):
+    """Occupied cells in box ``q`` (O(#bricks) SVT look-ups)."""
+    S = SVT_BRICK
+    total = np.int64(0)
+    for bz in range(q[2] // S, (q[5] - 1) // S + 1):
+        for by in range(q[1] // S, (q[4] - 1) // S + 1):
+            for bx in range(q[0] // S, (q[3] - 1) // S + 1):
+                if bcount[bz, by, bx] == 0:
+                    continue
+                x0 = max(q[0], bx * S) - bx * S
+                y0 = max(q[1], by * S) - by * S
+                z0 = max(q[2], bz * S) - bz * S
+                x1 = min(q[3], bx * S + S) - bx * S
+                y1 = min(q[4], by * S + S) - by * S
+                z1 = min(q[5], bz * S + S) - bz * S
+                total += _svt_count(svt[bslot[bz, by, bx]], x0, y0, z0, x1, y1, z1)
+    return total
+
+
+# --------------------------------------------------------------------------- split
+@njit(cache=True, inline="always")
+def _vol(b):
+    return np.int64(b[3] - b[0]) * np.int64(b[4] - b[1]) * np.int64(b[5] - b[2])
+
+
+@njit(cache=True)
+def _union(dst, i, a, j, b, k):
+    """``dst[i] = a[j] U b[k]`` for boxes (rows of 6 ints)."""
+    for m in range(3):
+        dst[i, m] = min(a[j, m], b[k, m])
+        dst[i, m + 3] = max(a[j, m + 3], b[k, m + 3])
+
+
+@njit(cache=True)
+def build_tree(svt, bslot, bcount, bbox, root, deep, min_frac, min_leaf, bins, bin_levels,
+               cap, node_box, node_axis, node_split, node_child, node_depth):
+    """Greedy top-down k-d tree over the occupied cells (see the module docstring).
+
+    ``root`` is the tight box of all occupied cells. For every node and axis the
+    node is cut into slabs (one cell thick, or ``bins`` evenly spaced slabs when
+    the node is at depth < ``bin_levels`` and wider than ``bins``); one tight-box
+    query per slab, then prefix and suffix unions give the tight boxes of both
+    children for every candidate plane between slabs at once. The plane
+    minimising the sum of the children's tight-box volumes wins, and the children
+    are shrunk to their tight boxes.
+
+    Shallow (``deep`` false, Vidal et al. 2008): a split is allowed only when both
+    tight children have at least ``min_frac`` of the root's volume and the summed
+    volume is smaller than the node's. Deep: planes leave at least ``min_leaf``
+    cells of the node on both sides; nodes are split until no plane is possible,
+    the node is fully occupied, or no plane reduces the summed volume while the
+    node is at least half occupied.
+
+    Writes the nodes (children of node ``i`` are ``node_child[i]`` and
+    ``node_child[i] + 1``, leaves have ``node_axis == -1``) and returns the node
+    count, or -1 when ``cap`` nodes were not enough.
+    """
+    for a in range(6):
+        node_box[0, a] = root[a]
+    node_axis[0] = -1
+    node_split[0] = 0
+    node_child[0] = -1
+    node_depth[0] = 0
+    n_nodes = 1
+    root_vol = _vol(root)
+    min_vol = min_frac * root_vol
+    max_ext = max(root[3] - root[0], max(root[4] - root[1], root[5] - root[2]))
+    stack = np.empty(cap + 2, np.int64)
+    sp = 0
+    stack[sp] = 0
+    sp += 1
+    q = np.empty(6, np.int64)
+    work = np.empty(6, np.int64)
+    tb = np.empty(6, np.int64)
+    planes = np.empty(max_ext + 1, np.int64)
+    slab = np.empty((max_ext + 1, 6), np.int64)
+    has = np.empty(max_ext + 1, np.bool_)
+    pre = np.empty((max_ext + 1, 6), np.int64)
+    suf = np.empty((max_ext + 1, 6), np.int64)
+    best_l = np.empty(6, np.int64)
+    best_r = np.empty(6, np.int64)
+    big = np.int64(1) << 40
+    while sp > 0:
+        sp -= 1
+        node = stack[sp]
+        box = node_box[node]
+        vol = _vol(box)
+        count = np.int64(0)
+        if deep:
+            count = box_count(svt, bslot, bcount, bbox, box)
+            if count == vol:
+                continue  # fully occupied: nothing to remove
+        best_cost = np.int64(1) << 62
+        best_axis = -1
+        best_s = 0
+        for ax in range(3):
+            lo = box[ax]
+            hi = box[ax + 3]
+            ext = hi - lo
+            if ext < 2 or (deep and ext < 2 * min_leaf):
+                continue
+            nb = ext
+            if bins > 0 and node_depth[node] < bin_levels and ext > bins:
+                nb = bins
+            for j in range(nb + 1):
+                planes[j] = lo + (j * ext) // nb
+            # tight box of every slab
+            for j in range(nb):
+                for a in range(6):
+                    q[a] = box[a]
+                q[ax] = planes[j]
+                q[ax + 3] = planes[j + 1]
+                has[j] = tight_box(svt, bslot, bcount, bbox, q, tb, work)
+                if has[j]:
+                    for a in range(6):
+                        slab[j, a] = tb[a]
+                else:
+                    for a in range(3):
+                        slab[j, a] = big
+                        slab[j, a + 3] = -big
+            # prefix unions pre[j] = slabs 0..j-1, suffix unions suf[j] = slabs j..nb-1
+            for a in range(3):
+                pre[0, a] = big
+                pre[0, a + 3] = -big
+                suf[nb, a] = big
+                suf[nb, a + 3] = -big
+            for j in range(nb):
+                _union(pre, j + 1, pre, j, slab, j)
+            for j in range(nb - 1, -1, -1):
+                _union(suf, j, suf, j + 1, slab, j)
+            for j in range(1, nb):
+                s = planes[j]
+                if deep and (s - lo < min_leaf or hi - s < min_leaf):
+                    continue
+                if pre[j, 3] < pre[j, 0] or suf[j, 3] < suf[j, 0]:
+                    continue  # one side empty (cannot happen for tight nodes)
+                vl = np.int64(pre[j, 3] - pre[j, 0]) * (pre[j, 4] - pre[j, 1]) * (pre[j, 5] - pre[j, 2])
+                vr = np.int64(suf[j, 3] - suf[j, 0]) * (suf[j, 4] - suf[j, 1]) * (suf[j, 5] - suf[j, 2])
+                if not deep and (vl < min_vol or vr < min_vol):
+                    continue
+                cost = vl + vr
+                if cost < best_cost:
+                    best_cost = cost
+                    best_axis = ax
+                    best_s = s
+                    for a in range(6):
+                        best_l[a] = pre[j, a]
+                        best_r[a] = suf[j, a]
+        if best_axis < 0:
+            continue
+        if best_cost >= vol and (not deep or 2 * count >= vol):
+            # no reduction: a shallow node stops; a deep one stops when at least
+            # half full (a sparser one may still have holes deeper down)
+            continue
+        if n_nodes + 2 > cap:
+            return -1
+        c = n_nodes
+        n_nodes += 2
+        node_axis[node] = best_axis
+        node_split[node] = best_s
+        node_child[node] = c
+        for a in range(6):
+            node_box[c, a] = best_l[a]
+            node_box[c + 1, a] = best_r[a]
+        for k in range(2):
+            node_axis[c + k] = -1
+            node_split[c + k] = 0
+            node_child[c + k] = -1
+            node_depth[c + k] = node_depth[node] + 1
+        stack[sp] = c + 1
+        stack[sp + 1] = c
+        sp += 2
+    return n_nodes
+
+
+@njit(cache=True, parallel=True)
+def block_occupancy(svt, bslot, bcount, block, out):
+    """``out[gz, gy, gx] = 1`` where the ``block``^3 cells of grid cell ``g`` hold an
+    occupied cell (``block`` divides 32): the hybrid grid, read off the SVTs."""
+    S = SVT_BRICK
+    ngz, ngy, ngx = out.shape
+    for gz in prange(ngz):
+        for gy in range(ngy):
+            for gx in range(ngx):
+                z0 = gz * block
+                y0 = gy * block
+                x0 = gx * block
+                bz = z0 // S
+                by = y0 // S
+                bx = x0 // S
+                if bcount[bz, by, bx] == 0:
+                    out[gz, gy, gx] = 0
+                    continue
+                t = svt[bslot[bz, by, bx]]
+                lx = x0 - bx * S
+                ly = y0 - by * S
+                lz = z0 - bz * S
+                n = _svt_count(t, lx, ly, lz, lx + block, ly + block, lz + block)
+                out[gz, gy, gx] = 1 if n > 0 else 0
