@@ -26,6 +26,16 @@ from .volume import BrickStats, Volume
 
 __version__ = "0.1.0"
 
+
+def show(volume, tf=None, **kwargs):
+    """Interactive viewer for Jupyter (see :func:`sparsecast.viewer.show`); needs
+    ``pip install "sparsecast[view]"``. Imported lazily: ``import sparsecast`` does not
+    load the web stack."""
+    from .viewer import show as _show
+
+    return _show(volume, tf, **kwargs)
+
+
 __all__ = [
     "BrickStats",
     "Camera",
@@ -45,5 +55,6 @@ __all__ = [
     "load_volume",
     "render",
     "save_volume",
+    "show",
     "__version__",
 ]

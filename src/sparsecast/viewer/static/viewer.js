@@ -1,0 +1,301 @@
+// sparsecast viewer: vanilla JS, no external requests. Talks to /ws (see messages.py).
+"use strict";
+(function () {
+  const $ = (id) => document.getElementById(id);
+  const view = $("view"), vctx = view.getContext("2d");
+  const tfc = $("tf"), tctx = tfc.getContext("2d");
+  const strip = $("tf-strip"), sctx = strip.getContext("2d");
+  const IDLE_MS = 150, PICK_PX = 8;
+
+  const st = {
+    ws: null, hello: null, camera: null, tf: null, index: null,
+    seq: 0, frames: 0, previewFrames: 0, lastStatus: null, pendingStatus: null,
+    dirty: false, preview: false, idleTimer: 0, rafQueued: false,
+    cmapColors: {},
+  };
+  // Exposed for tests and the console.
+  window.sparsecastViewer = st;
+
+  function showError(msg) {
+    const e = $("error");
+    if (!msg) { e.hidden = true; e.textContent = ""; return; }
+    e.hidden = false; e.textContent = msg;
+  }
+
+  function connect() {
+    const proto = location.protocol === "https:" ? "wss:" : "ws:";
+    const ws = new WebSocket(proto + "//" + location.host + "/ws");
+    ws.binaryType = "blob";
+    st.ws = ws;
+    ws.onmessage = (ev) => {
+      if (typeof ev.data === "string") onText(JSON.parse(ev.data));
+      else onFrame(ev.data);
+    };
+    ws.onclose = () => { $("status").textContent = "disconnected (reload the page to reconnect)"; };
+  }
+
+  function onText(msg) {
+    if (msg.type === "hello") return onHello(msg);
+    if (msg.type === "frame") { st.pendingStatus = msg; return; }
+    if (msg.type === "speedup") {
+      if (st.lastStatus && st.lastStatus.seq === msg.seq) {
+        Object.assign(st.lastStatus, msg, { type: "frame" });
+        showStatus(st.lastStatus);
+      }
+      return;
+    }
+    if (msg.type === "error") showError(msg.message);
+  }
+
+  function onFrame(blob) {
+    const status = st.pendingStatus; st.pendingStatus = null;
+    createImageBitmap(blob).then((bmp) => {
+      vctx.imageSmoothingEnabled = true;
+      vctx.drawImage(bmp, 0, 0, view.width, view.height);
+      bmp.close && bmp.close();
+      st.frames += 1;
+      if (status && status.preview) st.previewFrames += 1;
+      if (status) { st.lastStatus = status; showStatus(status); if (!status.preview) showError(""); }
+    });
+  }
+
+  const f1 = (x) => (x == null ? "-" : Number(x).toFixed(1));
+  function showStatus(s) {
+    const sp = s.speedup == null ? "speedup: measuring when idle" :
+      `speedup ${s.speedup.toFixed(1)}x over naive (${f1(s.naive_ms)} ms ${s.speedup_source})`;
+    $("status").textContent =
+      `${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
+      `rebuild ${s.rebuilt ? f1(s.rebuild_ms) + " ms" : "cached"} | frame ${f1(s.frame_ms)} ms | ` +
+      `${(s.samples / 1e6).toFixed(2)} M samples | ${sp}`;
+  }
+
+  function onHello(h) {
+    st.hello = h;
+    st.camera = Object.assign({}, h.state.camera);
+    st.tf = { points: h.state.tf.points.map((p) => p.slice()), colormap: h.state.tf.colormap,
+              value_range: h.state.tf.value_range.slice() };
+    st.index = Object.assign({}, h.state.index);
+    $("volume-name").textContent = `${h.volume.name} ${h.volume.dims.join("x")} ${h.volume.dtype}`;
+    const cm = $("colormap"); cm.innerHTML = "";
+    cm.add(new Option("(point colours)", ""));
+    for (const p of h.presets) cm.add(new Option(p, p));
+    cm.value = st.tf.colormap || "";
+    const ix = $("index"); ix.innerHTML = "";
+    for (const n of h.indices) ix.add(new Option(n, n));
+    ix.value = st.index.name;
+    const ce = $("cell"); ce.innerHTML = "";
+    ce.add(new Option("default", ""));
+    for (const c of h.cells) ce.add(new Option(String(c), String(c)));
+    ce.value = st.index.cell == null ? "" : String(st.index.cell);
+    syncInputs();
+    drawTF();
+    request(false, true);
+  }
+
+  function syncInputs() {
+    $("range-lo").value = st.tf.value_range[0];
+    $("range-hi").value = st.tf.value_range[1];
+    $("azimuth").value = st.camera.azimuth.toFixed(1);
+    $("elevation").value = st.camera.elevation.toFixed(1);
+    $("zoom").value = st.camera.zoom.toFixed(2);
+    $("cell").disabled = !st.index.name.startsWith("grid");
+  }
+
+  // --- requests: coalesced per animation frame; previews while interacting ----------
+  function request(preview, all) {
+    st.dirty = true;
+    st.preview = preview;
+    st.sendAll = st.sendAll || !!all;
+    if (!st.rafQueued) { st.rafQueued = true; requestAnimationFrame(flush); }
+    clearTimeout(st.idleTimer);
+    if (preview) st.idleTimer = setTimeout(() => request(false), IDLE_MS);
+  }
+
+  function flush() {
+    st.rafQueued = false;
+    if (!st.dirty || !st.ws || st.ws.readyState !== 1) return;
+    st.dirty = false;
+    st.seq += 1;
+    const msg = {
+      type: "render", seq: st.seq, preview: st.preview,
+      width: view.width, height: view.height,
+      camera: st.camera, tf: st.tf, index: st.index,
+    };
+    st.sendAll = false;
+    st.ws.send(JSON.stringify(msg));
+  }
+
+  // --- orbit / zoom -------------------------------------------------------------------
+  let drag = null;
+  view.addEventListener("pointerdown", (e) => {
+    drag = { x: e.clientX, y: e.clientY, az: st.camera.azimuth, el: st.camera.elevation };
+    view.setPointerCapture(e.pointerId);
+    view.classList.add("dragging");
+  });
+  view.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    st.camera.azimuth = (((drag.az - (e.clientX - drag.x) * 0.4) % 360) + 360) % 360;
+    st.camera.elevation = Math.max(-89.9, Math.min(89.9, drag.el + (e.clientY - drag.y) * 0.4));
+    syncInputs();
+    request(true);
+  });
+  const endDrag = () => { if (drag) { drag = null; view.classList.remove("dragging"); request(false); } };
+  view.addEventListener("pointerup", endDrag);
+  view.addEventListener("pointercancel", endDrag);
+  view.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    st.camera.zoom = Math.max(0.05, Math.min(50, st.camera.zoom * Math.exp(-e.deltaY * 0.0015)));
+    syncInputs();
+    request(true);
+  }, { passive: false });
+
+  for (const id of ["azimuth", "elevation", "zoom"]) {
+    $(id).addEventListener("change", () => {
+      const v = parseFloat($(id).value);
+      if (!isFinite(v)) return syncInputs();
+      if (id === "elevation") st.camera.elevation = Math.max(-90, Math.min(90, v));
+      else if (id === "zoom") st.camera.zoom = Math.max(0.05, Math.min(50, v));
+      else st.camera.azimuth = ((v % 360) + 360) % 360;
+      syncInputs(); request(false);
+    });
+  }
+
+  // --- TF editor ----------------------------------------------------------------------
+  const PAD = 6;
+  const toPx = (p) => [PAD + p[0] * (tfc.width - 2 * PAD), tfc.height - PAD - p[4] * (tfc.height - 2 * PAD)];
+  const fromPx = (x, y) => [
+    Math.max(0, Math.min(1, (x - PAD) / (tfc.width - 2 * PAD))),
+    Math.max(0, Math.min(1, (tfc.height - PAD - y) / (tfc.height - 2 * PAD))),
+  ];
+
+  function interpColour(x) {
+    const pts = st.tf.points;
+    if (x <= pts[0][0]) return pts[0].slice(1, 4);
+    for (let i = 1; i < pts.length; i++) {
+      if (x <= pts[i][0]) {
+        const a = pts[i - 1], b = pts[i], t = b[0] > a[0] ? (x - a[0]) / (b[0] - a[0]) : 0;
+        return [1, 2, 3].map((c) => a[c] + t * (b[c] - a[c]));
+      }
+    }
+    return pts[pts.length - 1].slice(1, 4);
+  }
+
+  function drawTF() {
+    const w = tfc.width, h = tfc.height;
+    tctx.clearRect(0, 0, w, h);
+    const hist = st.hello.histogram.counts, vr = st.hello.histogram.range, tr = st.tf.value_range;
+    const logc = hist.map((c) => Math.log1p(c)); const top = Math.max(...logc) || 1;
+    tctx.fillStyle = "#30363d";
+    // Histogram bins are over the volume range; the editor's x axis is the TF range.
+    for (let i = 0; i < hist.length; i++) {
+      const v0 = vr[0] + (i / hist.length) * (vr[1] - vr[0]), v1 = vr[0] + ((i + 1) / hist.length) * (vr[1] - vr[0]);
+      const x0 = PAD + ((v0 - tr[0]) / (tr[1] - tr[0])) * (w - 2 * PAD), x1 = PAD + ((v1 - tr[0]) / (tr[1] - tr[0])) * (w - 2 * PAD);
+      const bh = (logc[i] / top) * (h - 2 * PAD);
+      tctx.fillRect(x0, h - PAD - bh, Math.max(1, x1 - x0 - 0.5), bh);
+    }
+    const pts = st.tf.points;
+    tctx.strokeStyle = "#e6edf3"; tctx.lineWidth = 1.5; tctx.beginPath();
+    pts.forEach((p, i) => { const [x, y] = toPx(p); i ? tctx.lineTo(x, y) : tctx.moveTo(x, y); });
+    tctx.stroke();
+    for (const p of pts) {
+      const [x, y] = toPx(p);
+      tctx.fillStyle = `rgb(${p[1] * 255},${p[2] * 255},${p[3] * 255})`;
+      tctx.strokeStyle = "#fff";
+      tctx.beginPath(); tctx.arc(x, y, 5, 0, 2 * Math.PI); tctx.fill(); tctx.stroke();
+    }
+    // Colour strip: the colour map when one is chosen (as the server applies it), else point colours.
+    const sw = strip.width, cmap = st.tf.colormap && st.hello.colormaps ? st.hello.colormaps[st.tf.colormap] : null;
+    for (let i = 0; i < sw; i++) {
+      const x = (i + 0.5) / sw;
+      const c = cmap ? cmap[Math.min(cmap.length - 1, Math.floor(x * cmap.length))] : interpColour(x);
+      sctx.fillStyle = `rgb(${c[0] * 255},${c[1] * 255},${c[2] * 255})`;
+      sctx.fillRect(i, 0, 1, strip.height);
+    }
+  }
+
+  function pointAt(x, y) {
+    let best = -1, bd = PICK_PX * PICK_PX;
+    st.tf.points.forEach((p, i) => {
+      const [px, py] = toPx(p); const d = (px - x) ** 2 + (py - y) ** 2;
+      if (d <= bd) { bd = d; best = i; }
+    });
+    return best;
+  }
+  function canvasXY(e) {
+    const r = tfc.getBoundingClientRect();
+    return [(e.clientX - r.left) * (tfc.width / r.width), (e.clientY - r.top) * (tfc.height / r.height)];
+  }
+  // Pixel position (CSS px, relative to the editor's top-left) of point i: for tests.
+  st.pointPixel = (i) => {
+    const r = tfc.getBoundingClientRect(); const [x, y] = toPx(st.tf.points[i]);
+    return [x * r.width / tfc.width, y * r.height / tfc.height];
+  };
+
+  function sortPoints(keep) {
+    const p = st.tf.points[keep];
+    st.tf.points.sort((a, b) => a[0] - b[0]);
+    return st.tf.points.indexOf(p);
+  }
+
+  let tdrag = -1;
+  tfc.addEventListener("pointerdown", (e) => {
+    if (e.button !== 0 || !st.hello) return;
+    const [x, y] = canvasXY(e);
+    let i = pointAt(x, y);
+    if (i < 0) {
+      if (st.tf.points.length >= st.hello.limits.max_points) return showError("too many TF points");
+      const [nx, na] = fromPx(x, y);
+      const c = interpColour(nx);
+      st.tf.points.push([nx, c[0], c[1], c[2], na]);
+      i = sortPoints(st.tf.points.length - 1);
+      drawTF(); request(true);
+    }
+    tdrag = i;
+    tfc.setPointerCapture(e.pointerId);
+  });
+  tfc.addEventListener("pointermove", (e) => {
+    if (tdrag < 0) return;
+    const [x, y] = canvasXY(e);
+    const [nx, na] = fromPx(x, y);
+    const p = st.tf.points[tdrag];
+    p[0] = nx; p[4] = na;
+    tdrag = sortPoints(tdrag);
+    drawTF(); request(true);
+  });
+  const endT = () => { if (tdrag >= 0) { tdrag = -1; request(false); } };
+  tfc.addEventListener("pointerup", endT);
+  tfc.addEventListener("pointercancel", endT);
+  function removeAt(e) {
+    e.preventDefault();
+    const [x, y] = canvasXY(e);
+    const i = pointAt(x, y);
+    if (i >= 0 && st.tf.points.length > 2) { st.tf.points.splice(i, 1); drawTF(); request(false); }
+  }
+  tfc.addEventListener("dblclick", removeAt);
+  tfc.addEventListener("contextmenu", removeAt);
+
+  $("colormap").addEventListener("change", () => {
+    st.tf.colormap = $("colormap").value || null;
+    drawTF(); request(false);
+  });
+  function rangeChanged() {
+    const lo = parseFloat($("range-lo").value), hi = parseFloat($("range-hi").value);
+    if (!(isFinite(lo) && isFinite(hi) && lo < hi)) { showError("range: expected numbers lo < hi"); return syncInputs(); }
+    st.tf.value_range = [lo, hi]; drawTF(); request(false);
+  }
+  $("range-lo").addEventListener("change", rangeChanged);
+  $("range-hi").addEventListener("change", rangeChanged);
+  $("range-reset").addEventListener("click", () => {
+    st.tf.value_range = st.hello.volume.value_range.slice(); syncInputs(); drawTF(); request(false);
+  });
+  $("index").addEventListener("change", () => {
+    st.index.name = $("index").value;
+    if (!st.index.name.startsWith("grid")) st.index.cell = null;
+    syncInputs(); request(false);
+  });
+  $("cell").addEventListener("change", () => {
+    const v = $("cell").value; st.index.cell = v ? parseInt(v, 10) : null; request(false);
+  });
+
+  connect();
+})();
