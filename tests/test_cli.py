@@ -160,6 +160,31 @@ def test_bench_writes_records(monkeypatch, capsys, tmp_path):
     assert all(r["speedup_vs_naive"] is not None for r in renders)
 
 
+def test_bench_plots(monkeypatch, capsys, tmp_path):
+    code, out, err = run_cli(
+        monkeypatch, capsys, "bench", "-d", "demo", "-m", "naive", "-m", "grid-pc", "--size", "16x16",
+        "--repeat", "1", "--warmup", "0", "--no-dense", "--json", str(tmp_path / "b.json"),
+        "--plot", str(tmp_path / "figs"),
+    )
+    assert code == 0, err
+    for name in ("frame_times.png", "build_times.png"):
+        with PILImage.open(tmp_path / "figs" / name) as im:
+            assert im.size[0] > 200 and im.size[1] > 200
+
+
+def test_sweep_plot_from_records(tmp_path):
+    from sparsecast.bench.plots import write_plots
+
+    recs = []
+    for k, naive_ms, grid_ms in [(1, 100.0, 5.0), (64, 100.0, 20.0), (512, 100.0, 90.0)]:
+        for m, ms in (("naive", naive_ms), ("grid-pc", grid_ms)):
+            recs.append({"dataset": f"fig5b-256-k{k:04d}", "tf": "default", "method": m,
+                         "phase": "render", "ms": ms})
+    paths = write_plots(recs, tmp_path)
+    assert [p.name for p in paths] == ["sweep_fig5b-256.png"]
+    assert paths[0].stat().st_size > 1000
+
+
 def test_bench_rejects_unknown_names(monkeypatch, capsys):
     code, _, err = run_cli(monkeypatch, capsys, "bench", "--dataset", "nope")
     assert code == 2 and "nope" in err

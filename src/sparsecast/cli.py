@@ -215,6 +215,7 @@ def bench(
     warmup: Annotated[int, typer.Option(help="Untimed runs before timing.")] = 1,
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing (default half a voxel).")] = None,
     json_path: Annotated[Optional[Path], typer.Option("--json", help="Where to write the records (default bench-results/bench-<time>.json).")] = None,
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="Also write matplotlib figures (PNG) into this folder.")] = None,
 ) -> None:
     """Time every index on the demo and the shared real volumes; print a table, write JSON."""
     from .bench import DATASETS, BenchConfig, format_table, run_benchmarks, write_json
@@ -240,6 +241,11 @@ def bench(
     path = json_path or Path("bench-results") / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
     write_json(records, path)
     _out.print(f"wrote {len(records)} records to {path}")
+    if plot is not None:
+        from .bench.plots import write_plots
+
+        for fig_path in write_plots(records, plot):
+            _out.print(f"wrote {fig_path}")
 
 
 @app.command()
