@@ -109,3 +109,15 @@ def test_orbit_rejects_bad_zoom(vol):
         sc.Camera.orbit(vol, zoom=0)
     with pytest.raises(sc.ParameterError, match="azimuth"):
         sc.Camera.orbit(vol, azimuth=np.inf)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_orbit_pan_shifts_the_view(vol, projection):
+    cam = sc.Camera.orbit(vol, 30, 20, projection=projection, pan=(0.5, -0.25))
+    _, right, up = cam.basis()
+    radius = vol.diagonal / 2
+    np.testing.assert_allclose(cam.target, vol.center + radius * (0.5 * right - 0.25 * up), atol=1e-9)
+    x, y = project(cam, vol.center)
+    assert x < 31.5 and y < 23.5  # centre moved left and up on screen
+    with pytest.raises(sc.ParameterError, match="pan"):
+        sc.Camera.orbit(vol, pan=(np.nan, 0))

@@ -107,6 +107,7 @@ class Camera:
         fov_y: float = 30.0,
         zoom: float = 1.0,
         distance: float | None = None,
+        pan: tuple[float, float] = (0.0, 0.0),
     ) -> "Camera":
         """A camera on a sphere around ``volume`` that frames it (fit-to-volume).
 
@@ -123,6 +124,9 @@ class Camera:
             > 1 magnifies, < 1 shows more surroundings.
         distance : float, optional
             Eye-to-centre distance; default fits the volume's bounding sphere.
+        pan : (float, float)
+            Shift of the view (eye and target together) to the right and up, in
+            units of the bounding-sphere radius.
         """
         if not (np.isfinite(zoom) and zoom > 0):
             raise ParameterError(f"zoom: expected a positive number, got {zoom}")
@@ -144,8 +148,14 @@ class Camera:
                 distance = 2.0 * radius  # any eye outside the bounding sphere works
         if not (np.isfinite(distance) and distance > 0):
             raise ParameterError(f"distance: expected a positive number, got {distance}")
-        eye = center + distance * to_eye
-        return cls(eye, center, up, projection, fov_y, ortho_height=2.0 * radius / zoom)
+        pan_arr = np.asarray(pan, dtype=np.float64)
+        if pan_arr.shape != (2,) or not np.all(np.isfinite(pan_arr)):
+            raise ParameterError(f"pan: expected two finite numbers (right, up), got {pan!r}")
+        right = np.cross(-to_eye, up)
+        right /= np.linalg.norm(right)
+        target = center + radius * (pan_arr[0] * right + pan_arr[1] * up)
+        eye = target + distance * to_eye
+        return cls(eye, target, up, projection, fov_y, ortho_height=2.0 * radius / zoom)
 
     # -- derived frame ----------------------------------------------------
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

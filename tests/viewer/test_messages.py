@@ -162,3 +162,15 @@ def test_import_sparsecast_does_not_load_the_web_stack():
             "print(sorted(m for m in ('starlette', 'uvicorn', 'websockets') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_camera_pan_parses_and_is_checked():
+    cam = {"azimuth": 0, "elevation": 0, "zoom": 1, "pan": [0.5, -1.25]}
+    assert parse({"type": "render", "camera": cam}).camera.pan == (0.5, -1.25)
+    no_pan = {k: v for k, v in cam.items() if k != "pan"}
+    assert parse({"type": "render", "camera": no_pan}).camera.pan == (0.0, 0.0)
+    with pytest.raises(MessageError):  # NaN is refused before any field is read
+        parse(json.dumps({"type": "render", "camera": dict(cam, pan=[float("nan"), 0])}))
+    for bad in ([1.0], [0, 1, 2], "left", [100, 0], [True, 0], {"x": 1}):
+        with pytest.raises(MessageError, match="pan"):
+            parse(json.dumps({"type": "render", "camera": dict(cam, pan=bad)}))

@@ -279,3 +279,18 @@ def test_cli_view_starts_server(monkeypatch, capsys, tmp_path):
         assert not exc.code
     out = capsys.readouterr().out
     assert seen["url"].startswith("http://127.0.0.1:") and seen["url"] in out
+
+
+def test_pan_moves_the_picture(client):
+    with client.websocket_connect("/ws") as ws:
+        ws.receive_json()
+        cam = {"azimuth": 0, "elevation": 0, "zoom": 1.0}
+        ws.send_text(render_msg(1, camera=cam, width=64, height=64, format="png"))
+        _, centred = recv_frame(ws)
+        ws.send_text(render_msg(2, camera=dict(cam, pan=[0.5, 0.0]), format="png"))
+        _, panned = recv_frame(ws)
+        # Panning the view right moves the content left: its brightness centroid shifts.
+        cols = np.arange(64)
+        cx0 = (centred.sum(axis=(0, 2)) * cols).sum() / centred.sum()
+        cx1 = (panned.sum(axis=(0, 2)) * cols).sum() / panned.sum()
+        assert cx1 < cx0 - 3

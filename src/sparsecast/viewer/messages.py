@@ -67,7 +67,9 @@ MAX_ABS_VALUE = 1e300
 _MAX_NAME = 64
 
 _TOP_KEYS = {"type", "seq", "camera", "tf", "index", "width", "height", "preview", "format"}
-_CAMERA_KEYS = {"azimuth", "elevation", "zoom"}
+_CAMERA_KEYS = {"azimuth", "elevation", "zoom", "pan"}
+_CAMERA_REQUIRED = ("azimuth", "elevation", "zoom")
+PAN_LIMIT = 5.0  # bounding-sphere radii
 _TF_KEYS = {"points", "colormap", "value_range"}
 _INDEX_KEYS = {"name", "cell"}
 _FORMATS = ("jpeg", "png")
@@ -82,6 +84,7 @@ class CameraSpec:
     azimuth: float = 30.0
     elevation: float = 20.0
     zoom: float = 1.0
+    pan: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -166,13 +169,20 @@ def _name(value: Any, name: str, allowed: Iterable[str]) -> str:
 
 def parse_camera(value: Any) -> CameraSpec:
     d = _object(value, "camera", _CAMERA_KEYS)
-    for key in sorted(_CAMERA_KEYS):
+    for key in _CAMERA_REQUIRED:
         if key not in d:
             raise _fail(f"camera.{key}: missing")
     az = _number(d["azimuth"], "camera.azimuth", -MAX_ABS_AZIMUTH, MAX_ABS_AZIMUTH)
     el = _number(d["elevation"], "camera.elevation", -90.0, 90.0)
     zoom = _number(d["zoom"], "camera.zoom", *ZOOM_RANGE)
-    return CameraSpec(az % 360.0, el, zoom)
+    pan = (0.0, 0.0)
+    if "pan" in d:
+        p = d["pan"]
+        if not isinstance(p, list) or len(p) != 2:
+            raise _fail(f"camera.pan: expected [right, up], got {type(p).__name__}")
+        pan = (_number(p[0], "camera.pan[0]", -PAN_LIMIT, PAN_LIMIT),
+               _number(p[1], "camera.pan[1]", -PAN_LIMIT, PAN_LIMIT))
+    return CameraSpec(az % 360.0, el, zoom, pan)
 
 
 def parse_tf(value: Any, presets: Iterable[str]) -> TFSpec:

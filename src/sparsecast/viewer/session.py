@@ -165,7 +165,8 @@ class ViewerData:
             "cells": list(CELL_SIZES),
             "limits": {"max_points": MAX_TF_POINTS, "preview": 256, "full": 512, "max_side": 1024, "min_side": 16},
             "state": {
-                "camera": {"azimuth": self.camera.azimuth, "elevation": self.camera.elevation, "zoom": self.camera.zoom},
+                "camera": {"azimuth": self.camera.azimuth, "elevation": self.camera.elevation,
+                           "zoom": self.camera.zoom, "pan": list(self.camera.pan)},
                 "tf": {"points": [list(p) for p in self.tf.points], "colormap": self.tf.colormap,
                        "value_range": list(self.tf.value_range)},
                 "index": {"name": self.index.name, "cell": self.index.cell},
@@ -245,7 +246,7 @@ class Session:
         return idx, ms, True
 
     def _camera(self, c: CameraSpec) -> Camera:
-        return Camera.orbit(self.data.volume, c.azimuth, c.elevation, zoom=c.zoom)
+        return Camera.orbit(self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan)
 
     @staticmethod
     def _view_key(s: Snapshot, w: int | None = None, h: int | None = None) -> tuple:

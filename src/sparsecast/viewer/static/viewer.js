@@ -127,15 +127,26 @@
 
   // --- orbit / zoom -------------------------------------------------------------------
   let drag = null;
+  // Left drag orbits; shift-drag, right or middle drag pans.
+  view.addEventListener("contextmenu", (e) => e.preventDefault());
   view.addEventListener("pointerdown", (e) => {
-    drag = { x: e.clientX, y: e.clientY, az: st.camera.azimuth, el: st.camera.elevation };
+    const pan = st.camera.pan || [0, 0];
+    drag = { x: e.clientX, y: e.clientY, az: st.camera.azimuth, el: st.camera.elevation,
+             pan: e.shiftKey || e.button !== 0, px: pan[0], py: pan[1] };
     view.setPointerCapture(e.pointerId);
     view.classList.add("dragging");
   });
   view.addEventListener("pointermove", (e) => {
     if (!drag) return;
-    st.camera.azimuth = (((drag.az - (e.clientX - drag.x) * 0.4) % 360) + 360) % 360;
-    st.camera.elevation = Math.max(-89.9, Math.min(89.9, drag.el + (e.clientY - drag.y) * 0.4));
+    if (drag.pan) {
+      // One view height is two bounding-sphere radii divided by the zoom.
+      const k = 2 / (view.clientHeight || 512) / st.camera.zoom;
+      const clamp = (v) => Math.max(-5, Math.min(5, v));
+      st.camera.pan = [clamp(drag.px - (e.clientX - drag.x) * k), clamp(drag.py + (e.clientY - drag.y) * k)];
+    } else {
+      st.camera.azimuth = (((drag.az - (e.clientX - drag.x) * 0.4) % 360) + 360) % 360;
+      st.camera.elevation = Math.max(-89.9, Math.min(89.9, drag.el + (e.clientY - drag.y) * 0.4));
+    }
     syncInputs();
     request(true);
   });
