@@ -190,3 +190,15 @@ def test_bench_rejects_unknown_names(monkeypatch, capsys):
     assert code == 2 and "nope" in err
     code, _, err = run_cli(monkeypatch, capsys, "bench", "--method", "nope")
     assert code == 2 and "nope" in err
+
+
+def test_parse_method_options():
+    from sparsecast.bench.harness import parse_method
+
+    assert parse_method("grid-pc:cell=8") == ("grid-pc", {"cell": 8})
+    assert parse_method("lbvh:prune=None,voting=voxels") == ("lbvh", {"prune": None, "voting": "voxels"})
+    assert parse_method("lbvh:prune=0.5") == ("lbvh", {"prune": 0.5})
+    with pytest.raises(sc.ParameterError, match="key=value"):
+        parse_method("lbvh:prune")
+    with pytest.raises(sc.ParameterError, match="unknown index"):
+        parse_method("octree")

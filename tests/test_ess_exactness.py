@@ -25,7 +25,7 @@ INDEX_OPTIONS: dict[str, list[dict]] = {
     "hybrid-pc": [{}],
     "hybrid-mm": [{}],
     # issue 5 (LBVH): edit only this line
-    "lbvh": [{}, {"prune": 0.3}, {"brick": 4, "voting": "voxels"}, {"prune": 1.0, "brick": 16}],
+    "lbvh": [{}, {"prune": None}, {"prune": 0.3}, {"brick": 4, "voting": "voxels"}, {"prune": 1.0, "brick": 16}],
 }
 
 EXACT = [n for n in sc.available_indices() if n != "naive" and _INDICES[n].exact]

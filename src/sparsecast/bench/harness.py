@@ -90,14 +90,23 @@ def machine_info() -> dict[str, Any]:
     }
 
 
+_LITERALS = {"none": None, "true": True, "false": False}
+
+
 def parse_method(spec: str) -> tuple[str, dict[str, Any]]:
-    """``"grid-pc:cell=8"`` -> ``("grid-pc", {"cell": 8})`` (values parsed as int, float or str)."""
+    """``"grid-pc:cell=8"`` -> ``("grid-pc", {"cell": 8})``.
+
+    Values are parsed as None/True/False, int, float, or else kept as strings.
+    """
     name, _, opts = spec.partition(":")
     options: dict[str, Any] = {}
     for item in filter(None, opts.split(",")):
         key, eq, value = item.partition("=")
         if not eq:
             raise ParameterError(f"method {spec!r}: expected name:key=value[,key=value], got {item!r}")
+        if value.lower() in _LITERALS:
+            options[key] = _LITERALS[value.lower()]
+            continue
         for conv in (int, float):
             try:
                 options[key] = conv(value)

@@ -132,8 +132,10 @@ class LBVH(SpatialIndex):
     brick : int
         Voxel cells per brick edge (default 8).
     prune : float or None
-        Collapse subtrees whose fill ratio is at least this into one leaf
-        (default None: leaves are single bricks).
+        Collapse subtrees whose fill ratio is at least this into one leaf. The
+        default 1.0 collapses only completely full subtrees: the same samples, fewer
+        leaves (it removes most of the overhead when nothing is empty). None keeps
+        one leaf per brick.
     voting : {"bricks", "voxels"}
         Classify bricks from the cached brick min/max (default) or from a pass over
         the voxels.
@@ -141,7 +143,7 @@ class LBVH(SpatialIndex):
 
     name = "lbvh"
 
-    def __init__(self, volume, tf, brick: int = 8, prune: float | None = None, voting: str = "bricks") -> None:
+    def __init__(self, volume, tf, brick: int = 8, prune: float | None = 1.0, voting: str = "bricks") -> None:
         super().__init__(volume, tf)
         self.brick, self.prune, self.voting = _check_options(brick, prune, voting)
         B = self.brick
