@@ -14,9 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.camera import index_space_ray
-from ..kernels.classify import range_is_empty
-from ..kernels.dda import dda_axis
-from ..kernels.march import march_interval
+from ..kernels.dda import dda_march
 from ..kernels.ray import clip_box
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds, tile_count
@@ -25,70 +23,6 @@ from .setup import RenderSetup, register_marcher
 
 _NO_MASK = np.zeros((1, 1, 1), np.uint8)
 _NO_RANGE = np.zeros((1, 1, 1), np.float64)
-
-
-@njit(cache=True, error_model="numpy")
-def dda_march(
-    flat, nx, ny, nz, cell, ncx, ncy, ncz, occupied, cell_min, cell_max, use_minmax, prefix,
-    table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, inv_spacing, dt,
-    t_enter, t_far, k_next, r, g, b, a, ert, shading,
-):
-    """March the non-empty grid cells along ``[t_enter, t_far]`` (runs of
-    consecutive non-empty cells as one segment, as in :func:`.grid.grid_tile`)."""
-    n_samples = 0
-    n_nonempty = 0
-    cx, sx, tmx, tdx = dda_axis(ox, dx, t_enter, cell, ncx)
-    cy, sy, tmy, tdy = dda_axis(oy, dy, t_enter, cell, ncy)
-    cz, sz, tmz, tdz = dda_axis(oz, dz, t_enter, cell, ncz)
-    seg_open = False
-    seg_t0 = 0.0
-    while True:
-        if tmx <= tmy and tmx <= tmz:
-            axis = 0
-            t_exit = tmx
-            leaves = cx + sx < 0 or cx + sx >= ncx
-        elif tmy <= tmz:
-            axis = 1
-            t_exit = tmy
-            leaves = cy + sy < 0 or cy + sy >= ncy
-        else:
-            axis = 2
-            t_exit = tmz
-            leaves = cz + sz < 0 or cz + sz >= ncz
-        last = leaves or t_exit >= t_far
-        if last:
-            t_exit = t_far
-        if use_minmax:
-            full = not range_is_empty(prefix, v_lo, scale, cell_min[cz, cy, cx], cell_max[cz, cy, cx])
-        else:
-            full = occupied[cz, cy, cx] != 0
-        if full and not seg_open:
-            seg_open = True
-            seg_t0 = t_enter
-        if seg_open and (not full or last):
-            seg_open = False
-            r, g, b, a, k_next, ns, nne = march_interval(
-                flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
-                wdx, wdy, wdz, inv_spacing, dt, seg_t0, t_exit if full else t_enter,
-                k_next, r, g, b, a, ert, shading,
-            )
-            n_samples += ns
-            n_nonempty += nne
-            if a >= ert:
-                break
-        if last:
-            break
-        t_enter = t_exit
-        if axis == 0:
-            cx += sx
-            tmx += tdx
-        elif axis == 1:
-            cy += sy
-            tmy += tdy
-        else:
-            cz += sz
-            tmz += tdz
-    return r, g, b, a, k_next, n_samples, n_nonempty
 
 
 @njit(cache=True, error_model="numpy")
