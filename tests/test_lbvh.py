@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import sparsecast as sc
+from synthetic import sparse_volume
 from sparsecast.errors import ParameterError
 from sparsecast.index import _lbvh_kernels as K
 from sparsecast.kernels.classify import _classify_parallel, _classify_serial
@@ -21,16 +22,7 @@ PHASES = ["voting", "compaction", "morton", "sort", "hierarchy", "refit", "layou
 
 
 def blobs(shape, n_blobs, seed=0) -> sc.Volume:
-    rng = np.random.default_rng(seed)
-    nz, ny, nx = shape
-    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
-    field = np.zeros(shape, np.float64)
-    for _ in range(n_blobs):
-        c = rng.uniform(0, 1, 3) * (np.array([nx, ny, nz]) - 1)
-        s = rng.uniform(0.7, 3.0)
-        d2 = (x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2
-        field += rng.uniform(0.3, 1.0) * np.exp(-d2 / (2 * s * s)) * (d2 < (3 * s) ** 2)
-    return sc.Volume(np.clip(field, 0, 1).astype(np.float32))
+    return sparse_volume(np.random.default_rng(seed), shape, n_blobs)
 
 
 VIRIDIS = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.15)

@@ -1,0 +1,23 @@
+"""Generated test volumes shared by several test modules."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import sparsecast as sc
+
+
+def sparse_volume(rng: np.random.Generator, shape, n_blobs: int, dtype="float32", **kw) -> sc.Volume:
+    """Gaussian blobs at random places (values in [0, 1]); the rest exactly 0."""
+    nz, ny, nx = shape
+    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    field = np.zeros(shape, np.float64)
+    for _ in range(n_blobs):
+        c = rng.uniform(0, 1, 3) * (np.array([nx, ny, nz]) - 1)
+        s = rng.uniform(0.7, 3.0)
+        d2 = (x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2
+        field += rng.uniform(0.3, 1.0) * np.exp(-d2 / (2 * s * s)) * (d2 < (3 * s) ** 2)
+    field = np.clip(field, 0, 1)
+    if np.dtype(dtype) == np.uint8:
+        return sc.Volume(np.rint(field * 255).astype(np.uint8), **kw)
+    return sc.Volume(field.astype(dtype), **kw)
