@@ -1,0 +1,200 @@
+"""Closest-hit traversal of a surface BVH whose leaves are triangles or height-field tiles.
+
+The exact triangle BVH is the special case with no tiles, and the hybrid RBVH
+is the general one, so both run the same kernel and their speeds compare like
+for like. Node layout (see :mod:`._bvh_build_kernels`): ``node_count > 0`` is a
+triangle leaf of ``node_count`` triangles from ``node_child``; ``node_count == 0``
+an inner node with children ``node_child`` and ``node_child + 1``;
+``node_count == TILE_LEAF`` a tile leaf whose tile is ``node_child``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.camera import primary_ray
+from ..kernels.tiles import tile_bounds, tile_count
+from ._rbvh_kernels import tile_hit, tile_normal
+
+#: ``node_count`` of a tile leaf
+TILE_LEAF = -1
+#: rays per parallel work item of the batch driver
+RAY_CHUNK = 64
+
+
+@njit(cache=True, inline="always")
+def _inv(d):
+    # A huge finite inverse keeps (lo - o) * inv free of 0 * inf = NaN.
+    if d == 0.0:
+        return 1e30
+    return 1.0 / d
+
+
+@njit(cache=True, inline="always")
+def ray_box(nb, k, ox, oy, oz, ix, iy, iz, t_min, t_max):
+    """Entry distance of the ray into node box ``k``, or ``inf`` when it misses."""
+    a = (nb[k, 0, 0] - ox) * ix
+    b = (nb[k, 1, 0] - ox) * ix
+    tn, tf = min(a, b), max(a, b)
+    a = (nb[k, 0, 1] - oy) * iy
+    b = (nb[k, 1, 1] - oy) * iy
+    tn, tf = max(tn, min(a, b)), min(tf, max(a, b))
+    a = (nb[k, 0, 2] - oz) * iz
+    b = (nb[k, 1, 2] - oz) * iz
+    tn, tf = max(tn, min(a, b)), min(tf, max(a, b))
+    tn = max(tn, t_min)
+    if tn <= min(tf, t_max):
+        return tn
+    return math.inf
+
+
+@njit(cache=True, inline="always")
+def intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
+    """Möller–Trumbore, two-sided: ``(t, b1, b2)`` with ``t = inf`` on a miss."""
+    ax, ay, az = tris[k, 0, 0], tris[k, 0, 1], tris[k, 0, 2]
+    e1x, e1y, e1z = tris[k, 1, 0] - ax, tris[k, 1, 1] - ay, tris[k, 1, 2] - az
+    e2x, e2y, e2z = tris[k, 2, 0] - ax, tris[k, 2, 1] - ay, tris[k, 2, 2] - az
+    px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    if det == 0.0:
+        return math.inf, 0.0, 0.0
+    inv = 1.0 / det
+    tx, ty, tz = ox - ax, oy - ay, oz - az
+    u = (tx * px + ty * py + tz * pz) * inv
+    if u < 0.0 or u > 1.0:
+        return math.inf, 0.0, 0.0
+    qx, qy, qz = ty * e1z - tz * e1y, tz * e1x - tx * e1z, tx * e1y - ty * e1x
+    v = (dx * qx + dy * qy + dz * qz) * inv
+    if v < 0.0 or u + v > 1.0:
+        return math.inf, 0.0, 0.0
+    t = (e2x * qx + e2y * qy + e2z * qz) * inv
+    if t < t_min or t > t_max:
+        return math.inf, 0.0, 0.0
+    return t, u, v
+
+
+@njit(cache=True)
+def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
+                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                ox, oy, oz, dx, dy, dz, t_min, t_max, stack):
+    """Nearest hit along the ray in ``[t_min, t_max]``.
+
+    Returns ``(t, nx, ny, nz, face, tile, a, b)``: ``t = inf`` on a miss; the unit
+    shading normal; the mesh face (triangle hits, else -1) or tile (tile hits,
+    else -1); barycentrics ``(a, b)`` of a triangle hit or texel coordinates of a
+    tile hit.
+    """
+    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    best = t_max
+    face = -1
+    tile = -1
+    ha = hb = 0.0
+    if ray_box(nb, 0, ox, oy, oz, ix, iy, iz, t_min, best) == math.inf:
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    sp = 0
+    node = 0
+    while True:
+        c = ncount[node]
+        if c == 0:
+            left = nchild[node]
+            tl = ray_box(nb, left, ox, oy, oz, ix, iy, iz, t_min, best)
+            tr = ray_box(nb, left + 1, ox, oy, oz, ix, iy, iz, t_min, best)
+            if tl != math.inf or tr != math.inf:
+                if tl <= tr:
+                    node = left
+                    if tr != math.inf:
+                        stack[sp] = left + 1
+                        sp += 1
+                else:
+                    node = left + 1
+                    if tl != math.inf:
+                        stack[sp] = left
+                        sp += 1
+                continue
+        elif c > 0:
+            first = nchild[node]
+            for k in range(first, first + c):
+                t, u, v = intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, best)
+                if t < best:
+                    best, face, tile, ha, hb = t, tri_face[k], -1, u, v
+        else:
+            k = nchild[node]
+            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
+            if t < best:
+                best, face, tile, ha, hb = t, -1, k, s, u
+        # Pop the next node that the ray still reaches before the best hit.
+        found = False
+        while sp > 0:
+            sp -= 1
+            node = stack[sp]
+            if ray_box(nb, node, ox, oy, oz, ix, iy, iz, t_min, best) != math.inf:
+                found = True
+                break
+        if not found:
+            break
+    if face < 0 and tile < 0:
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    if face >= 0:
+        w = 1.0 - ha - hb
+        f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
+        nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
+        ny = w * vnormals[f0, 1] + ha * vnormals[f1, 1] + hb * vnormals[f2, 1]
+        nz = w * vnormals[f0, 2] + ha * vnormals[f1, 2] + hb * vnormals[f2, 2]
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 0.0:
+            nx, ny, nz = nx / ln, ny / ln, nz / ln
+    else:
+        r = tile_rect[tile]
+        nx, ny, nz = tile_normal(atlas_normal, r[0], r[1], r[2], ha, hb)
+    return best, nx, ny, nz, face, tile, ha, hb
+
+
+@njit(cache=True, parallel=True)
+def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
+              tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+              origins, dirs, t_min, t_max, stack_size,
+              out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of a batch of rays (unit directions), in parallel chunks."""
+    n = origins.shape[0]
+    n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
+    for c in prange(n_chunks):
+        stack = np.empty(stack_size, np.int32)
+        for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
+            t, nx, ny, nz, f, tl, a, b = closest_hit(
+                nb, nchild, ncount, tris, tri_face, faces, vnormals,
+                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
+                t_min, t_max, stack)
+            out_t[r] = t
+            out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
+            out_face[r], out_tile[r] = f, tl
+            out_uv[r, 0], out_uv[r, 1] = a, b
+
+
+@njit(cache=True, parallel=True)
+def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
+                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                 params, width, height, stack_size,
+                 out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of the camera's primary rays, parallel over pixel tiles.
+
+    Outputs are per pixel: ``out_t`` (H, W), ``out_n`` (H, W, 3), ``out_face`` and
+    ``out_tile`` (H, W), ``out_uv`` (H, W, 2).
+    """
+    for tile in prange(tile_count(width, height)):
+        stack = np.empty(stack_size, np.int32)
+        x0, x1, y0, y1 = tile_bounds(tile, width, height)
+        for py in range(y0, y1):
+            for px in range(x0, x1):
+                ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
+                t, nx, ny, nz, f, tl, a, b = closest_hit(
+                    nb, nchild, ncount, tris, tri_face, faces, vnormals,
+                    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                    ox, oy, oz, dx, dy, dz, 0.0, np.inf, stack)
+                out_t[py, px] = t
+                out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
+                out_face[py, px], out_tile[py, px] = f, tl
+                out_uv[py, px, 0], out_uv[py, px, 1] = a, b

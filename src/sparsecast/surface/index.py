@@ -1,0 +1,191 @@
+"""The flattened surface index both builders produce, and :func:`raycast` over it.
+
+A :class:`SurfaceIndex` is a BVH whose leaves are triangles (exact) or
+height-field tiles in an atlas (approximate); the exact BVH has no tiles, the
+hybrid RBVH has both. One traversal kernel serves every kind
+(:func:`._bvh_kernels.closest_hit`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from ._bvh_kernels import TILE_LEAF, cast_rays
+
+__all__ = ["SurfaceIndex", "Hits", "raycast", "empty_atlas_arrays"]
+
+
+def empty_atlas_arrays() -> dict[str, np.ndarray]:
+    """Tile arrays of an index without tiles (dtypes as the kernels expect)."""
+    return dict(
+        tile_proj=np.zeros((0, 12), np.float32),
+        tile_h=np.zeros((0, 2), np.float32),
+        tile_rect=np.zeros((0, 3), np.int32),
+        atlas_depth=np.zeros((1, 1), np.float32),
+        atlas_normal=np.zeros((1, 1, 3), np.int8),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceIndex:
+    """Flattened BVH over triangles and/or height-field tiles.
+
+    Attributes
+    ----------
+    kind : str
+        ``"bvh"`` (exact) or ``"rbvh"`` (rasterized, possibly hybrid).
+    node_bounds : (n, 2, 3) float32
+    node_child, node_count : (n,) int32
+        See :mod:`._bvh_kernels` for the encoding.
+    tris : (k, 3, 3) float32
+        Triangles of the triangle leaves in leaf order; ``tri_face`` maps them to
+        mesh faces (for normals).
+    faces, vnormals : mesh faces (int32) and float32 vertex normals for shading.
+    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal
+        Tile projections, height ranges, atlas rectangles, the depth layer and the
+        int8 normal layer (see :mod:`._rbvh_kernels`).
+    depth : int
+        Tree depth (the traversal stack size).
+    build : dict
+        ``ms`` and per-phase milliseconds, plus builder parameters.
+    """
+
+    kind: str
+    source: Any
+    node_bounds: np.ndarray
+    node_child: np.ndarray
+    node_count: np.ndarray
+    tris: np.ndarray
+    tri_face: np.ndarray
+    faces: np.ndarray
+    vnormals: np.ndarray
+    tile_proj: np.ndarray
+    tile_h: np.ndarray
+    tile_rect: np.ndarray
+    atlas_depth: np.ndarray
+    atlas_normal: np.ndarray
+    depth: int
+    build: dict = field(default_factory=dict)
+    layers: dict = field(default_factory=dict)  # extra atlas layers (surface storage)
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.node_bounds[0].mean(axis=0).astype(np.float64)
+
+    @property
+    def diagonal(self) -> float:
+        return float(np.linalg.norm(np.ptp(self.node_bounds[0].astype(np.float64), axis=0)))
+
+    @property
+    def n_tiles(self) -> int:
+        return int(self.tile_rect.shape[0])
+
+    def kernel_args(self) -> tuple:
+        """The arrays every traversal kernel takes, in order."""
+        return (self.node_bounds, self.node_child, self.node_count, self.tris, self.tri_face,
+                self.faces, self.vnormals, self.tile_proj, self.tile_h, self.tile_rect,
+                self.atlas_depth, self.atlas_normal)
+
+    def nbytes(self) -> dict[str, int]:
+        """Bytes of the tree, the triangles it stores, the atlas and the shading data."""
+        tiles = self.n_tiles > 0
+        return {
+            "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes),
+            "triangles": int(self.tris.nbytes + self.tri_face.nbytes),
+            "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tile_proj.nbytes
+                         + self.tile_h.nbytes + self.tile_rect.nbytes) if tiles else 0,
+            # Smooth shading of triangle hits reads the mesh's faces and vertex normals.
+            "shading": int(self.faces.nbytes + self.vnormals.nbytes) if len(self.tris) else 0,
+        }
+
+    def stats(self) -> dict[str, Any]:
+        """Node / leaf counts, depth, bytes, build time per phase."""
+        c = self.node_count
+        b = self.nbytes()
+        out = {
+            "kind": self.kind,
+            "nodes": int(len(c)),
+            "triangle_leaves": int((c > 0).sum()),
+            "tile_leaves": int((c == TILE_LEAF).sum()),
+            "triangles": int(len(self.tris)),
+            "tiles": self.n_tiles,
+            "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
+            "atlas_shape": list(self.atlas_depth.shape) if self.n_tiles else [0, 0],
+            "depth": self.depth,
+            "bytes": int(sum(b.values())),
+            **{f"bytes_{k}": v for k, v in b.items()},
+        }
+        out.update(self.build)
+        return out
+
+    def __repr__(self) -> str:
+        s = self.stats()
+        return (f"<SurfaceIndex {self.kind}: {s['nodes']} nodes, {s['triangles']} triangles, "
+                f"{s['tiles']} tiles, {s['bytes'] / 2**20:.1f} MiB>")
+
+
+@dataclass(frozen=True)
+class Hits:
+    """Closest hits of a batch of rays (``t = inf`` where a ray misses).
+
+    ``face`` is the mesh face of a triangle hit (else -1), ``tile`` the atlas tile
+    of a height-field hit (else -1); ``uv`` holds barycentrics for triangle hits
+    and texel coordinates for tile hits.
+    """
+
+    t: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    face: np.ndarray
+    tile: np.ndarray
+    uv: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return np.isfinite(self.t)
+
+
+def _rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    o = np.asarray(origins, dtype=np.float64)
+    d = np.asarray(directions, dtype=np.float64)
+    if o.ndim == 1:
+        o = o[None]
+    if o.ndim != 2 or o.shape[1] != 3:
+        raise ParameterError(f"origins: expected shape (n, 3), got {np.shape(origins)}")
+    if d.ndim == 1:
+        d = d[None]
+    if d.shape != o.shape and d.shape != (1, 3) and o.shape != (1, 3):
+        raise ParameterError(f"directions: expected shape {o.shape} (or (3,)), got {np.shape(directions)}")
+    o, d = np.broadcast_arrays(o, d)
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise ParameterError("origins/directions: expected finite numbers, found NaN or Inf")
+    ln = np.linalg.norm(d, axis=1, keepdims=True)
+    if (ln == 0).any():
+        raise ParameterError(f"directions: {int((ln == 0).sum())} are zero vectors; expected non-zero directions")
+    return np.ascontiguousarray(o), np.ascontiguousarray(d / ln)
+
+
+def raycast(index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
+            t_max: float = np.inf) -> Hits:
+    """Closest hit of every ray ``origins[i] + t * directions[i]``, ``t`` in ``[t_min, t_max]``.
+
+    Directions are normalised first, so ``t`` is a world-space distance.
+    """
+    if not isinstance(index, SurfaceIndex):
+        raise ParameterError(f"index: expected a SurfaceIndex from build_bvh/build_rbvh, got {type(index).__name__}")
+    if not (t_max >= t_min >= 0.0):
+        raise ParameterError(f"t_min, t_max: expected 0 <= t_min <= t_max, got {t_min}, {t_max}")
+    o, d = _rays(origins, directions)
+    n = len(o)
+    t = np.empty(n, np.float64)
+    nrm = np.empty((n, 3), np.float32)
+    face = np.empty(n, np.int32)
+    tile = np.empty(n, np.int32)
+    uv = np.empty((n, 2), np.float32)
+    cast_rays(*index.kernel_args(), o, d, float(t_min), float(t_max), index.depth + 2, t, nrm, face, tile, uv)
+    pts = o + np.where(np.isfinite(t), t, np.nan)[:, None] * d
+    return Hits(t, pts, nrm, face, tile, uv)

@@ -1,0 +1,290 @@
+"""Surface containers: :class:`TriangleMesh` and :class:`PointCloud`, validated once.
+
+Both keep float64 coordinates for building and hand float32 copies to the kernels.
+They expose ``center`` and ``diagonal`` so :meth:`sparsecast.Camera.orbit` frames
+them exactly as it frames a volume.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SparsecastError
+
+__all__ = ["MeshDataError", "TriangleMesh", "PointCloud", "icosphere", "subdivide", "grid_plane", "box_mesh", "z_up"]
+
+
+class MeshDataError(SparsecastError):
+    """Mesh or point data is unusable: empty, NaN/Inf, out-of-range or degenerate faces."""
+
+
+def _check_points(v: np.ndarray, what: str, source: str) -> np.ndarray:
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshDataError(f"{source}: expected {what} of shape (n, 3), got {v.shape}")
+    if v.shape[0] == 0:
+        raise MeshDataError(f"{source}: has no {what} (empty); expected at least one")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise MeshDataError(
+            f"{source}: {int(bad.sum())} of {len(v)} {what} contain NaN or Inf "
+            f"(first at row {int(np.argmax(bad))}); expected finite coordinates"
+        )
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class TriangleMesh:
+    """An indexed triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array_like of float
+    faces : (m, 3) array_like of int
+        Vertex indices; every face must have non-zero area.
+    source : str
+        Name used in error messages (the file, or a description).
+
+    Raises
+    ------
+    MeshDataError
+        Empty input, NaN/Inf vertices, indices out of range, or zero-area faces
+        (``TriangleMesh.cleaned`` drops those first if that is what you want).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    source: str = "mesh"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        v = _check_points(self.vertices, "vertices", self.source)
+        f = np.asarray(self.faces)
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise MeshDataError(f"{self.source}: expected faces of shape (m, 3), got {f.shape}")
+        if f.shape[0] == 0:
+            raise MeshDataError(f"{self.source}: has no faces (empty); expected at least one triangle")
+        if not np.issubdtype(f.dtype, np.integer):
+            raise MeshDataError(f"{self.source}: expected integer face indices, got dtype {f.dtype}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise MeshDataError(
+                f"{self.source}: face indices span [{f.min()}, {f.max()}]; expected 0..{len(v) - 1}"
+            )
+        f = np.ascontiguousarray(f, dtype=np.int32)
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+        degenerate = np.flatnonzero(self.face_areas <= 1e-14 * max(self.bbox_area, 1e-300))
+        if degenerate.size:
+            raise MeshDataError(
+                f"{self.source}: {degenerate.size} of {len(f)} triangles are degenerate (zero area; "
+                f"first is face {int(degenerate[0])}); expected non-degenerate triangles "
+                "(load with drop_degenerate=True to remove them)"
+            )
+
+    @classmethod
+    def cleaned(cls, vertices, faces, source: str = "mesh") -> tuple["TriangleMesh", int]:
+        """The mesh without its zero-area faces, and how many were dropped."""
+        v = _check_points(vertices, "vertices", source)
+        f = np.asarray(faces, dtype=np.int64)
+        if f.ndim == 2 and f.shape[1] == 3 and f.size and f.min() >= 0 and f.max() < len(v):
+            a = _face_areas(v, f)
+            bbox = np.ptp(v, axis=0)
+            keep = a > 1e-14 * max(float(bbox @ bbox), 1e-300)
+            return cls(v, f[keep], source), int((~keep).sum())
+        return cls(v, f, source), 0
+
+    # -- geometry ----------------------------------------------------------
+    def _cached(self, key, make):
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(m, 3, 3) float64 corner coordinates."""
+        return self._cached("tris", lambda: self.vertices[self.faces])
+
+    @property
+    def face_areas(self) -> np.ndarray:
+        return self._cached("areas", lambda: _face_areas(self.vertices, self.faces))
+
+    @property
+    def face_normals(self) -> np.ndarray:
+        """(m, 3) unit geometric normals (right-hand rule on the vertex order)."""
+
+        def make():
+            t = self.triangles
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+        return self._cached("fn", make)
+
+    @property
+    def vertex_normals(self) -> np.ndarray:
+        """(n, 3) area-weighted unit vertex normals (smooth shading)."""
+
+        def make():
+            acc = np.zeros_like(self.vertices)
+            w = self.face_normals * self.face_areas[:, None]
+            for c in range(3):
+                np.add.at(acc, self.faces[:, c], w)
+            n = np.linalg.norm(acc, axis=1, keepdims=True)
+            return np.where(n > 0, acc / np.maximum(n, 1e-300), 0.0)
+
+        return self._cached("vn", make)
+
+    @property
+    def area(self) -> float:
+        return float(self.face_areas.sum())
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min and max corner."""
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @property
+    def bbox_area(self) -> float:
+        e = np.ptp(self.vertices, axis=0)
+        return float(e @ e)
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.bounds.mean(axis=0)
+
+    @property
+    def diagonal(self) -> float:
+        return float(np.linalg.norm(np.ptp(self.vertices, axis=0)))
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.vertices.nbytes + self.faces.nbytes)
+
+    def __repr__(self) -> str:
+        return f"<TriangleMesh {self.source!r}: {len(self.vertices)} vertices, {self.n_triangles} triangles>"
+
+
+def _face_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    t = v[f]
+    return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class PointCloud:
+    """Oriented points, rendered as discs (splats) of radius ``radii``.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like
+    normals : (n, 3) array_like, optional
+        Unit normals; without them the RBVH cannot orient its tiles, so they are
+        required by :func:`sparsecast.surface.build_rbvh`.
+    radii : float or (n,) array_like, optional
+        Disc radii; default: the mean nearest-neighbour spacing estimated from the
+        bounding box and the count.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None = None
+    radii: np.ndarray | float | None = None
+    source: str = "points"
+
+    def __post_init__(self) -> None:
+        p = _check_points(self.points, "points", self.source)
+        object.__setattr__(self, "points", p)
+        if self.normals is not None:
+            n = _check_points(self.normals, "normals", self.source)
+            if n.shape != p.shape:
+                raise MeshDataError(f"{self.source}: normals shape {n.shape} differs from points {p.shape}")
+            ln = np.linalg.norm(n, axis=1, keepdims=True)
+            if (ln == 0).any():
+                raise MeshDataError(f"{self.source}: {int((ln == 0).sum())} normals are zero; expected unit normals")
+            object.__setattr__(self, "normals", n / ln)
+        if self.radii is None:
+            ext = np.ptp(p, axis=0)
+            # Points on a surface: spacing ~ sqrt(surface area / n), surface ~ box faces.
+            spacing = np.sqrt(2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[0] * ext[2]) / len(p))
+            r = np.full(len(p), max(spacing, 1e-9))
+        else:
+            r = np.broadcast_to(np.asarray(self.radii, dtype=np.float64), (len(p),)).copy()
+            if not (np.isfinite(r).all() and (r > 0).all()):
+                raise MeshDataError(f"{self.source}: radii must be positive and finite")
+        object.__setattr__(self, "radii", r)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        r = float(np.max(self.radii))
+        return np.stack([self.points.min(axis=0) - r, self.points.max(axis=0) + r])
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.bounds.mean(axis=0)
+
+    @property
+    def diagonal(self) -> float:
+        return float(np.linalg.norm(np.ptp(self.bounds, axis=0)))
+
+    @property
+    def area(self) -> float:
+        """Total disc area (the surface the splats cover)."""
+        return float(np.pi * np.sum(np.asarray(self.radii) ** 2))
+
+    def __repr__(self) -> str:
+        return f"<PointCloud {self.source!r}: {len(self.points)} points>"
+
+
+# -- generated meshes (tests, benchmarks) -------------------------------------
+def subdivide(mesh: TriangleMesh, levels: int = 1) -> TriangleMesh:
+    """Midpoint subdivision: every level splits each triangle into four (same surface)."""
+    v, f = mesh.vertices, mesh.faces.astype(np.int64)
+    for _ in range(levels):
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        key = np.sort(edges, axis=1)
+        uniq, inv = np.unique(key, axis=0, return_inverse=True)
+        mid = len(v) + inv.reshape(3, -1).T  # (m, 3): midpoints of edges 01, 12, 20
+        v = np.concatenate([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
+        a, b, c = f[:, 0], f[:, 1], f[:, 2]
+        m01, m12, m20 = mid[:, 0], mid[:, 1], mid[:, 2]
+        f = np.concatenate([
+            np.stack([a, m01, m20], 1), np.stack([m01, b, m12], 1),
+            np.stack([m20, m12, c], 1), np.stack([m01, m12, m20], 1),
+        ])
+    return TriangleMesh(v, f, f"{mesh.source} (subdivided x{levels})")
+
+
+def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriangleMesh:
+    """A unit-ish sphere: an icosahedron subdivided and projected onto the sphere."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return TriangleMesh(np.asarray(s.vertices), np.asarray(s.faces), f"icosphere({subdivisions})")
+
+
+def grid_plane(n: int = 8, size: float = 1.0, z: float = 0.0) -> TriangleMesh:
+    """A flat square ``[0, size]^2`` at height ``z`` split into ``2 n^2`` triangles."""
+    g = np.linspace(0.0, size, n + 1)
+    xx, yy = np.meshgrid(g, g)
+    v = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, z)], 1)
+    i = np.arange(n)
+    a = (i[:, None] * (n + 1) + i[None, :]).ravel()
+    f = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])
+    return TriangleMesh(v, f, f"plane({n})")
+
+
+def box_mesh(lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0), n: int = 1) -> TriangleMesh:
+    """An axis-aligned closed box, each face split into ``2 n^2`` triangles."""
+    import trimesh
+
+    b = trimesh.creation.box(bounds=np.array([lo, hi], dtype=np.float64))
+    return subdivide(TriangleMesh(np.asarray(b.vertices), np.asarray(b.faces), "box"), max(0, int(np.log2(max(n, 1)))))
+
+
+def z_up(mesh: TriangleMesh) -> TriangleMesh:
+    """Rotate a y-up mesh (most scanned meshes: bunny, beast) so +z is up, as Camera.orbit expects."""
+    v = mesh.vertices[:, [0, 2, 1]] * np.array([1.0, -1.0, 1.0])  # (x, y, z) -> (x, -z, y)
+    return TriangleMesh(v, mesh.faces, mesh.source)
