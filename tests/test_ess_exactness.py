@@ -27,6 +27,8 @@ INDEX_OPTIONS: dict[str, list[dict]] = {
     "hybrid-mm": [{}],
     # issue 5 (LBVH): edit only this line
     "lbvh": [{}, {"prune": None}, {"prune": 0.3}, {"brick": 4, "voting": "voxels"}, {"prune": 1.0, "brick": 16}],
+    # issue 6 (BIH; only mode="ess" is exact): edit only this line
+    "bih": [{}, {"mode": "ess", "brick": 4, "variant": "basic"}, {"layout": "chunks", "chunk_depth": 3}],
 }
 
 EXACT = [n for n in sc.available_indices() if n != "naive" and _INDICES[n].exact]
