@@ -1,9 +1,13 @@
 """Figures in the style of the papers, drawn from benchmark records (matplotlib, PNG).
 
+All figures use one image size (the largest in the records) and the sparse TF.
+
 - ``frame_times.png``: frame ms per structure and dataset (median over views),
-  log scale, with the naive marcher as a line (hybrid-grids paper, Fig. 3).
-- ``build_times.png``: cold build and TF rebuild ms per structure and dataset
-  (construction next to rendering, LBVH paper Fig. 4 / k-d tree paper Table 1).
+  log scale, with the naive marcher and each peer as lines (hybrid-grids paper, Fig. 3).
+- ``build_times.png``: cold build, TF rebuild and frame ms per structure and dataset
+  (construction next to rendering, k-d tree paper Table 1).
+- ``build_vs_render.png``: per volume size of the n-body family, rebuild ms stacked
+  under frame ms for each structure (LBVH paper, Fig. 4), when present.
 - ``sweep_<family>.png``: speed-up over naive along a synthetic sweep
   (``fig5a-*``, ``fig5b-*`` datasets; hybrid-grids paper, Fig. 5), when present.
 """
@@ -11,23 +15,19 @@
 from __future__ import annotations
 
 import re
-import statistics
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
 from ..io.atomic import atomic_path
+from .summary import build_ms, render_rows
 
 __all__ = ["write_plots"]
 
-
-def _frame_ms(records, tf="default") -> dict[tuple[str, str], float]:
-    """(dataset, method) -> median frame ms over views."""
-    acc: dict[tuple[str, str], list[float]] = defaultdict(list)
-    for r in records:
-        if r["phase"] == "render" and r.get("tf") == tf:
-            acc[(r["dataset"], r["method"])].append(r["ms"])
-    return {k: statistics.median(v) for k, v in acc.items()}
+_SWEEP = re.compile(r"^(fig5[ab]-\d+)-[rk](\d+)$")
+#: the n-body field at growing sizes (LBVH paper Fig. 4 style), smallest first
+_SCALE_FAMILY = ("demo-128", "demo", "demo-512")
+_PEER_COLORS = ("tab:green", "tab:purple", "tab:brown")
 
 
 def _save(fig, path: Path) -> Path:
@@ -46,37 +46,51 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    sweep = re.compile(r"^(fig5[ab]-\d+)-[rk](\d+)$")
-    frame = _frame_ms(records)
-    datasets = sorted({d for d, _ in frame if not sweep.match(d)})
-    methods = sorted({m for _, m in frame if m != "naive"})
+    rows = [r for r in render_rows(records) if r.tf == "default"]
+    if rows:
+        width = max((r.width or 0) for r in rows)
+        rows = [r for r in rows if (r.width or 0) == width]
+    size_note = f", {rows[0].size}" if rows and rows[0].width else ""
+    frame = {(r.dataset, r.method): r.ms for r in rows if not r.peer}
+    peer_ms = {(r.dataset, r.method): r.ms for r in rows if r.peer}
+    peers = sorted({m for _, m in peer_ms})
+    datasets = list(dict.fromkeys(d for d, _ in frame if not _SWEEP.match(d)))
+    methods = list(dict.fromkeys(m for _, m in frame if m != "naive"))
+    builds = build_ms(records)
+
+    def grid(n: int):
+        cols = min(n, 4)
+        rows_ = -(-n // cols)
+        fig, axes = plt.subplots(rows_, cols, figsize=(4.2 * cols, 3.8 * rows_), squeeze=False)
+        for ax in axes.flat[n:]:
+            ax.set_visible(False)
+        return fig, list(axes.flat[:n])
 
     if datasets and methods:
-        fig, axes = plt.subplots(1, len(datasets), figsize=(4.2 * len(datasets), 3.6), squeeze=False)
-        for ax, ds in zip(axes[0], datasets):
+        fig, axes = grid(len(datasets))
+        for ax, ds in zip(axes, datasets):
             ms = [frame.get((ds, m), float("nan")) for m in methods]
-            ax.bar(range(len(methods)), ms, color="tab:blue")
+            ax.bar(range(len(methods)), ms, color="tab:blue", label="frame (ours)")
             if (ds, "naive") in frame:
                 ax.axhline(frame[(ds, "naive")], color="tab:red", lw=1.5, label="naive")
-                ax.legend(loc="upper right", fontsize=8)
+            for p, color in zip(peers, _PEER_COLORS):
+                if (ds, p) in peer_ms:
+                    ax.axhline(peer_ms[(ds, p)], color=color, lw=1.5, ls="--", label=p)
             ax.set_yscale("log")
             ax.set_xticks(range(len(methods)), methods, rotation=45, ha="right", fontsize=8)
             ax.set_title(ds, fontsize=10)
-        axes[0][0].set_ylabel("frame ms (median over views)")
-        fig.suptitle("Frame time per structure (sparse TF)")
-        fig.tight_layout()
+            ax.set_ylabel("frame ms (median over views)", fontsize=8)
+        _shared_legend(fig, axes)
+        fig.suptitle(f"Frame time per structure (sparse TF{size_note})")
+        fig.tight_layout(rect=(0, 0.06, 1, 1))
         written.append(_save(fig, out / "frame_times.png"))
         plt.close(fig)
 
-        build: dict[tuple[str, str, str], float] = {}
-        for r in records:
-            if r["phase"] in ("build_cold", "rebuild") and r.get("tf") == "default":
-                build[(r["dataset"], r["method"], r["phase"])] = r["ms"]
-        fig, axes = plt.subplots(1, len(datasets), figsize=(4.2 * len(datasets), 3.6), squeeze=False)
-        for ax, ds in zip(axes[0], datasets):
+        fig, axes = grid(len(datasets))
+        for ax, ds in zip(axes, datasets):
             x = range(len(methods))
-            cold = [build.get((ds, m, "build_cold"), 0.0) for m in methods]
-            rebuild = [build.get((ds, m, "rebuild"), 0.0) for m in methods]
+            cold = [builds.get((ds, "default", m, "build_cold"), {}).get("ms") or 0.0 for m in methods]
+            rebuild = [builds.get((ds, "default", m, "rebuild"), {}).get("ms") or 0.0 for m in methods]
             render_ms = [frame.get((ds, m), 0.0) for m in methods]
             ax.bar([i - 0.27 for i in x], cold, width=0.27, label="first build")
             ax.bar(x, rebuild, width=0.27, label="rebuild (TF change)")
@@ -84,20 +98,40 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
             ax.set_yscale("log")
             ax.set_xticks(list(x), methods, rotation=45, ha="right", fontsize=8)
             ax.set_title(ds, fontsize=10)
-        axes[0][0].set_ylabel("ms")
-        handles, labels = axes[0][0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8)
-        fig.suptitle("Construction vs rendering")
-        fig.tight_layout(rect=(0, 0.07, 1, 1))
+            ax.set_ylabel("ms", fontsize=8)
+        _shared_legend(fig, axes)
+        fig.suptitle(f"Construction vs rendering (sparse TF{size_note})")
+        fig.tight_layout(rect=(0, 0.06, 1, 1))
         written.append(_save(fig, out / "build_times.png"))
+        plt.close(fig)
+
+    family = [d for d in _SCALE_FAMILY if d in datasets]
+    if len(family) >= 2 and methods:
+        fig, axes = plt.subplots(1, len(family), figsize=(4.4 * len(family), 3.8), squeeze=False, sharey=True)
+        for ax, ds in zip(axes[0], family):
+            x = range(len(methods))
+            rebuild = [builds.get((ds, "default", m, "rebuild"), {}).get("ms") or 0.0 for m in methods]
+            render_ms = [frame.get((ds, m), 0.0) for m in methods]
+            ax.bar(x, rebuild, color="tab:orange", label="rebuild (TF change)")
+            ax.bar(x, render_ms, bottom=rebuild, color="tab:blue", label="frame")
+            if (ds, "naive") in frame:
+                ax.axhline(frame[(ds, "naive")], color="tab:red", lw=1.5, label="naive frame")
+            dims = next((r.get("dims") for r in records if r.get("phase") == "load" and r["dataset"] == ds), None)
+            ax.set_title(f"{ds} ({'x'.join(map(str, dims))})" if dims else ds, fontsize=10)
+            ax.set_xticks(list(x), methods, rotation=45, ha="right", fontsize=8)
+        axes[0][0].set_ylabel("ms (rebuild + one frame)")
+        _shared_legend(fig, list(axes[0]))
+        fig.suptitle(f"Build vs render per volume size (n-body field, sparse TF{size_note})")
+        fig.tight_layout(rect=(0, 0.08, 1, 1))
+        written.append(_save(fig, out / "build_vs_render.png"))
         plt.close(fig)
 
     families: dict[str, dict[str, list[tuple[int, float]]]] = defaultdict(lambda: defaultdict(list))
     for (ds, m), ms in frame.items():
-        match = sweep.match(ds)
+        match = _SWEEP.match(ds)
         if match and m != "naive" and (ds, "naive") in frame:
             families[match.group(1)][m].append((int(match.group(2)), frame[(ds, "naive")] / ms))
-    for family, per_method in sorted(families.items()):
+    for fam, per_method in sorted(families.items()):
         fig, ax = plt.subplots(figsize=(5.5, 3.6))
         for m, pts in sorted(per_method.items()):
             pts.sort()
@@ -105,10 +139,19 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
         ax.axhline(1.0, color="tab:red", lw=1, label="naive")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("cluster radius (% of edge)" if family.startswith("fig5a") else "number of clusters")
+        ax.set_xlabel("cluster radius (% of edge)" if fam.startswith("fig5a") else "number of clusters")
         ax.set_ylabel("speed-up over naive")
-        ax.set_title(family)
+        ax.set_title(fam)
         ax.legend(fontsize=8)
-        written.append(_save(fig, out / f"sweep_{family}.png"))
+        written.append(_save(fig, out / f"sweep_{fam}.png"))
         plt.close(fig)
     return written
+
+
+def _shared_legend(fig, axes) -> None:
+    """One legend for the figure: every label drawn in any panel, once."""
+    labels: dict[str, Any] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            labels.setdefault(label, handle)
+    fig.legend(list(labels.values()), list(labels), loc="lower center", ncol=min(len(labels), 6), fontsize=8)

@@ -1,4 +1,4 @@
-"""Benchmark output: a console table and a JSON file of records."""
+"""Benchmark output: a console table, and the JSON file of records (written and read back)."""
 
 from __future__ import annotations
 
@@ -7,13 +7,19 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ..errors import FileFormatError
 from ..io.atomic import atomic_path
 
-__all__ = ["format_table", "write_json"]
+__all__ = ["format_table", "write_json", "load_records"]
 
 
 def _fmt(v: Any, spec: str) -> str:
-    return "" if v is None else format(v, spec)
+    if v is None:
+        return ""
+    try:
+        return format(v, spec)
+    except (TypeError, ValueError):  # e.g. a section's float where an int was expected
+        return str(v)
 
 
 def format_table(records: list[dict[str, Any]]):
@@ -28,21 +34,29 @@ def format_table(records: list[dict[str, Any]]):
     ):
         table.add_column(col, justify=justify)  # type: ignore[arg-type]
     for r in records:
+        if r["phase"] == "section_done":
+            continue
         notes = []
+        if r["phase"] == "skipped":
+            notes.append(r.get("reason") or "")
+        if r.get("psnr_vs_naive") is not None:
+            notes.append(f"PSNR {r['psnr_vs_naive']:.1f} dB vs naive")
+        if r.get("ratio_to_best") is not None:
+            notes.append(f"{r['ratio_to_best']:.1f}x our best")
         if r.get("occupancy") is not None:
             notes.append(f"occupancy {100 * r['occupancy']:.1f}% of {r['bricks']} bricks")
         if r.get("table_size") is not None:
             notes.append(f"{r['table_size']} entries" + (f", {r['queries']} ranges" if r.get("queries") else ""))
-        if r["phase"] == "render":
-            notes.append(f"{r['width']}x{r['height']} dt={r['dt']:g}")
+        if r["phase"] == "render" and r.get("width"):
+            notes.append(f"{r['width']}x{r['height']}" + (f" dt={r['dt']:g}" if r.get("dt") else ""))
         table.add_row(
-            r["dataset"] or "", r.get("tf") or "", r["method"] or "", r["phase"] or "", r["view"] or "",
-            _fmt(r["ms"], ".3f" if (r["ms"] or 0) < 10 else ".1f"),
-            _fmt(None if r["samples"] is None else r["samples"] / 1e6, ".2f"),
+            str(r.get("dataset") or ""), r.get("tf") or "", r.get("method") or "", r["phase"] or "",
+            r.get("view") or "", _fmt(r.get("ms"), ".3f" if (r.get("ms") or 0) < 10 else ".1f"),
+            _fmt(None if r.get("samples") is None else r["samples"] / 1e6, ".2f"),
             _fmt(r.get("msamples_per_s"), ".1f"),
             _fmt(r.get("samples_vs_oracle"), ".1f"),
             _fmt(r.get("speedup_vs_naive"), ".2f"),
-            _fmt(r["bytes"], ",d"),
+            _fmt(r.get("bytes"), ",d"),
             "; ".join(notes),
         )
     return table
@@ -55,3 +69,18 @@ def write_json(records: list[dict[str, Any]], path: str | os.PathLike) -> Path:
     with atomic_path(p) as tmp:
         tmp.write_text(json.dumps(records, indent=1, default=float))
     return p
+
+
+def load_records(path: str | os.PathLike) -> list[dict[str, Any]]:
+    """Records from a JSON list (``--json`` output) or a JSONL journal."""
+    p = Path(path)
+    text = p.read_text()
+    try:
+        if p.suffix.lower() == ".jsonl":
+            return [json.loads(line) for line in text.splitlines() if line.strip()]
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"records {str(p)!r}: not valid JSON ({exc}); expected `sparsecast bench` output") from None
+    if not isinstance(data, list) or not all(isinstance(r, dict) and "phase" in r for r in data):
+        raise FileFormatError(f"records {str(p)!r}: expected a JSON list of benchmark records with a 'phase' each")
+    return data

@@ -1,0 +1,133 @@
+"""Benchmark suites as data: datasets x methods x image sizes x views x TFs.
+
+- ``quick``: the everyday run (what a plain ``sparsecast bench`` does), under two
+  minutes on two cores.
+- ``paper``: the papers' evaluation: every shared volume and the generated n-body
+  fields at 128^3 / 256^3 / 512^3, every registered index, 512^2 and 1024^2, the
+  camera orbiting in fixed steps around the three axes, sparse and dense TF, the
+  installed peers (VTK, yt) and the sections of the other modules (``bih``,
+  ``surface``).
+- ``bih`` / ``surface``: one section on its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from ..errors import ParameterError
+from .datasets import DATASETS
+
+__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name"]
+
+
+def orbit_views(steps: int) -> list[tuple[float, float]]:
+    """Views orbiting the volume in ``steps`` equal steps around each of the three axes.
+
+    Returns ``(azimuth, elevation)`` pairs for :meth:`Camera.orbit` (degrees):
+    around z the azimuth turns at elevation 0; around x the elevation turns at
+    azimuth 0 (the eye moves in the y-z plane); around y the elevation turns at
+    azimuth 90 (x-z plane). Views shared by two circles appear once.
+    """
+    if steps < 1:
+        raise ParameterError(f"steps: expected at least 1 view per axis, got {steps}")
+    step = 360.0 / steps
+    angles = [round(i * step, 6) for i in range(steps)]
+    views: list[tuple[float, float]] = []
+    for v in [(a, 0.0) for a in angles] + [(0.0, a) for a in angles] + [(90.0, a) for a in angles]:
+        if v not in views:
+            views.append(v)
+    return views
+
+
+def view_name(view: tuple[float, float]) -> str:
+    """The record label of a view, e.g. ``az30_el20``."""
+    az, el = view
+    return f"az{az:g}_el{el:g}"
+
+
+@dataclass(frozen=True)
+class Suite:
+    """One benchmark plan.
+
+    Attributes
+    ----------
+    name, description : str
+    datasets : tuple of str or None
+        Names from :data:`DATASETS`; ``None``: every dataset marked ``default``.
+    methods : tuple of str or None
+        Index specs (``name[:key=value,...]``); ``None``: every registered index,
+        discovered at run time so new indices join without editing suites.
+    sizes : tuple of (width, height)
+    views : tuple of (azimuth, elevation)
+    dense_tf : bool
+        Also run a TF with no empty space next to each dataset's sparse one.
+    repeat, warmup : int
+        Timed and untimed runs per measurement (views are already many samples
+        of the frame time in the paper suite, so one timed run each is enough).
+    irt : bool
+        Time the iterative range tree on TF tables.
+    peers : tuple of str
+        Other renderers to run on the same cases (``vtk``, ``yt``); missing ones are skipped.
+    sections : tuple of str
+        Modules ``sparsecast.bench.<name>`` with a ``run(...)`` of their own tables.
+    """
+
+    name: str
+    description: str
+    datasets: tuple[str, ...] | None = None
+    methods: tuple[str, ...] | None = None
+    sizes: tuple[tuple[int, int], ...] = ((512, 512),)
+    views: tuple[tuple[float, float], ...] = ((30.0, 20.0), (0.0, 0.0))
+    dense_tf: bool = True
+    repeat: int = 5
+    warmup: int = 1
+    irt: bool = True
+    peers: tuple[str, ...] = ()
+    sections: tuple[str, ...] = ()
+
+    def with_overrides(self, **changes) -> "Suite":
+        """A copy with the given fields replaced (fields left as None are kept)."""
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def dataset_names(self) -> list[str]:
+        if self.datasets is not None:
+            return list(self.datasets)
+        return [n for n, d in DATASETS.items() if d.default]
+
+
+def _paper_datasets() -> tuple[str, ...]:
+    shared = tuple(n for n, d in DATASETS.items() if d.file is not None)
+    return shared + ("demo-128", "demo", "demo-512")
+
+
+SUITES: dict[str, Suite] = {
+    s.name: s
+    for s in (
+        # Three timed frames per view keep the everyday run under two minutes on two cores.
+        Suite("quick", "the demo and the shared volumes, 512^2, two views, every index", repeat=3),
+        Suite(
+            "paper",
+            "every shared volume and the n-body fields at 128^3/256^3/512^3, every index, "
+            "512^2 and 1024^2, orbits around x, y, z, sparse + dense TF, peers, BIH and RBVH sections",
+            datasets=_paper_datasets(),
+            sizes=((512, 512), (1024, 1024)),
+            views=tuple(orbit_views(4)),
+            repeat=1,
+            warmup=0,
+            peers=("vtk", "yt"),
+            sections=("bih", "surface"),
+        ),
+        Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)",
+              datasets=(), irt=False, sections=("bih",)),
+        Suite("surface", "the RBVH section only (approximate surface ray casting)",
+              datasets=(), irt=False, sections=("surface",)),
+    )
+}
+
+
+def get_suite(name: str) -> Suite:
+    """The suite called ``name`` (one-line error naming the choices otherwise)."""
+    try:
+        return SUITES[name]
+    except KeyError:
+        raise ParameterError(f"--suite: unknown suite {name!r}; expected one of {', '.join(SUITES)}") from None
