@@ -371,7 +371,8 @@ def node_stats(kind, child, first, count, elem_volume, density, gradient, out_vo
             out_vol[i] = out_vol[c0]
             out_mean[i] = out_mean[c0]
             out_m2[i] = out_m2[c0]
-            out_grad[i] = out_grad[c0]
+            for a in range(3):
+                out_grad[i, a] = out_grad[c0, a]
             continue
         na = float(count[c0])
         nb = float(count[c1])
@@ -435,9 +436,10 @@ def lod_cut(kind, child, box, count, vol, mean, m2, max_depth, min_fill, max_std
 
 
 @njit(cache=True)
-def compact_cut(keep, child, new_child):
+def compact_cut(keep, child, new_child, new_depth):
     """Renumber the kept nodes (pre-order is preserved): returns the old ids in new
-    order; ``new_child`` (m, 2) receives the renumbered children (-1 under LoD leaves)."""
+    order; ``new_child`` (k, 2) receives the renumbered children (-1 under LoD
+    leaves) and ``new_depth`` (k,) the depths."""
     m = keep.shape[0]
     new_id = np.full(m, -1, np.int64)
     k = 0
@@ -458,6 +460,13 @@ def compact_cut(keep, child, new_child):
                 c1 = child[i, 1]
                 new_child[j, 0] = new_id[c0]
                 new_child[j, 1] = new_id[c1] if c1 >= 0 else -1
+    for j in range(k):  # pre-order: a parent precedes its children
+        if j == 0:
+            new_depth[0] = 0
+        for s in range(2):
+            c = new_child[j, s]
+            if c >= 0:
+                new_depth[c] = new_depth[j] + 1
     return old
 
 

@@ -57,7 +57,7 @@ from . import _bih_kernels as K
 from .base import SpatialIndex
 from .registry import register_index
 
-__all__ = ["BIH", "BIHTree", "PackedBIH", "build_bih", "MODES", "VARIANTS", "LAYOUTS"]
+__all__ = ["BIH", "BIHTree", "PackedBIH", "ParticleBIH", "build_bih", "MODES", "VARIANTS", "LAYOUTS"]
 
 MODES = ("ess", "single-sample", "multi-sample")
 VARIANTS = ("basic", "elaborate")
@@ -149,13 +149,12 @@ class BIHTree:
         keep = np.empty(self.n_nodes, np.int64)
         K.lod_cut(self.kind, self.child, self.box, self.count, self.elem_volume, self.mean, self.var * self.count,
                   md, mf, ms, keep)
-        new_child = np.empty((int((keep >= 0).sum()), 2), np.int64)
-        old = K.compact_cut(keep, self.child, new_child)
+        k = int((keep >= 0).sum())
+        new_child = np.empty((k, 2), np.int64)
+        depth = np.zeros(k, np.int64)
+        old = K.compact_cut(keep, self.child, new_child, depth)
         kind = self.kind[old].copy()
         kind[keep[old] == 1] = K.LEAF
-        depth = np.zeros(old.shape[0], np.int64)
-        if old.shape[0]:
-            _depths(new_child, depth)
         out = BIHTree(kind, new_child, self.plane[old], self.box[old], self.first[old], self.count[old], depth,
                       self.elem_volume[old], self.mean[old], self.var[old], self.grad[old], self.perm,
                       self.elements, self.variant)
@@ -207,13 +206,6 @@ class BIHTree:
 
 def _dq(q: int, el: Elements, a: int) -> float:
     return float(K.dequantize_plane(q, el.frame_lo[a], el.frame_ext[a] / (K.Q_ONE - K.Q_ZERO)))
-
-
-def _depths(child, depth):
-    for i in range(child.shape[0]):  # pre-order: parents come first
-        for c in child[i]:
-            if c >= 0:
-                depth[c] = depth[i] + 1
 
 
 @dataclass
@@ -351,7 +343,7 @@ def build_bih(elements: Elements, variant: str = "elaborate") -> BIHTree:
     lo = np.array(elements.lo, np.float64, order="C", copy=True)
     hi = np.array(elements.hi, np.float64, order="C", copy=True)
     perm = np.arange(n, dtype=np.int64)
-    cap = 3 * n + 16
+    cap = 2 * n + 64  # grown by the kernel when single-child nodes need more
     node_i = np.empty((cap, 6), np.int64)
     node_f = np.empty((cap, 2), np.float64)
     node_box = np.empty((cap, 6), np.float64)
@@ -481,4 +473,39 @@ class BIH(SpatialIndex):
         s = super().stats()
         s.update(mode=self.mode, elements=len(self.elements), nodes=self.tree.n_nodes,
                  leaves=self.tree.n_leaves, depth=self.tree.max_depth, layout=self.packed.layout)
+        return s
+
+
+@dataclass
+class ParticleBIH:
+    """A packed BIH over spheres, with the spheres in tree order.
+
+    Leaves hold ``(first, count)`` into ``centers`` / ``radii`` / ``colors`` (the
+    :class:`~sparsecast.elements.ParticleSet`'s arrays permuted to tree order).
+    Built once per particle set; the radius scale is applied at render time.
+    """
+
+    particles: object
+    tree: BIHTree
+    packed: PackedBIH
+    centers: np.ndarray
+    radii: np.ndarray
+    colors: np.ndarray
+
+    @classmethod
+    def build(cls, particles, variant: str = "elaborate", layout: str = "preorder",
+              chunk_depth: int = 2) -> "ParticleBIH":
+        tree = build_bih(particles.elements(), variant)
+        packed = tree.pack(layout, chunk_depth)
+        p = tree.perm
+        return cls(particles, tree, packed, np.ascontiguousarray(particles.centers[p]),
+                   np.ascontiguousarray(particles.radii[p]), np.ascontiguousarray(particles.colors[p]))
+
+    @property
+    def max_radius(self) -> float:
+        return float(self.radii.max()) if self.radii.size else 0.0
+
+    def stats(self) -> dict:
+        s = self.tree.stats()
+        s.update(bytes=self.packed.nbytes, pack_ms=self.packed.build_ms)
         return s

@@ -1,0 +1,127 @@
+"""Particle readers: PLY (via trimesh), CSV and ``.npy`` -> :class:`~sparsecast.elements.ParticleSet`.
+
+Columns (CSV and ``.npy``): ``x y z`` then optionally ``radius`` and ``r g b``
+(3, 4 or 7 columns). A CSV may have a header naming the columns ``x, y, z``
+(required), ``radius`` and ``red, green, blue`` (colours only with a radius); colours above 1 are read as 0..255. PLY vertices give the
+centres, a ``radius`` (or ``scale``) vertex property the radii and vertex colours
+the colours. Without radii in the file every particle gets ``radius`` (default:
+0.5 % of the bounding-box diagonal).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..elements import ParticleSet
+from ..errors import FileFormatError
+
+__all__ = ["load_particles", "PARTICLE_SUFFIXES"]
+
+PARTICLE_SUFFIXES = (".ply", ".csv", ".npy")
+_DEFAULT_RADIUS_FRACTION = 0.005
+
+
+def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> ParticleSet:
+    """Read spheres from a PLY, CSV or ``.npy`` file (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+    radius : float, optional
+        Radius of every particle when the file has none (and only then).
+
+    Raises
+    ------
+    FileFormatError
+        Missing file, unknown suffix, or content that is not a particle table.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"{str(p)!r}: file not found")
+    suffix = p.suffix.lower()
+    if suffix not in PARTICLE_SUFFIXES:
+        raise FileFormatError(f"{str(p)!r}: unknown particle file suffix {suffix!r}; expected one of {PARTICLE_SUFFIXES}")
+    try:
+        if suffix == ".ply":
+            centers, radii, colors = _read_ply(p)
+        elif suffix == ".csv":
+            centers, radii, colors = _columns(_read_csv(p), p)
+        else:
+            centers, radii, colors = _columns(np.load(p, allow_pickle=False), p)
+    except FileFormatError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise FileFormatError(f"{str(p)!r}: cannot read particles ({exc})") from None
+    if radii is None:
+        if radius is None:
+            lo, hi = (centers.min(0), centers.max(0)) if len(centers) else (np.zeros(3), np.ones(3))
+            radius = max(_DEFAULT_RADIUS_FRACTION * float(np.linalg.norm(hi - lo)), 1e-6)
+        radii = np.full(centers.shape[0], float(radius))
+    if colors is not None and colors.size and colors.max() > 1.0:
+        colors = colors / 255.0
+    try:
+        return ParticleSet(centers, radii, colors, name=p.name)
+    except ValueError as exc:
+        raise FileFormatError(f"{str(p)!r}: {exc}") from None
+
+
+def _columns(a: np.ndarray, p: Path):
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim == 1 and a.size in (3, 4, 7):
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[1] not in (3, 4, 7):
+        raise FileFormatError(
+            f"{str(p)!r}: expected a table of 3 (x y z), 4 (+ radius) or 7 (+ r g b) columns, got shape {a.shape}"
+        )
+    radii = a[:, 3] if a.shape[1] >= 4 else None
+    colors = a[:, 4:7] if a.shape[1] == 7 else None
+    return a[:, :3], radii, colors
+
+
+def _read_csv(p: Path) -> np.ndarray:
+    with open(p, encoding="utf-8") as f:
+        first = f.readline()
+    cells = [c.strip().lower() for c in first.split(",")]
+    try:
+        [float(c) for c in cells]
+        header = None
+    except ValueError:
+        header = cells
+    a = np.loadtxt(p, delimiter=",", skiprows=1 if header else 0, ndmin=2)
+    if header is None:
+        return a
+    want = ["x", "y", "z"]
+    missing = [c for c in want if c not in header]
+    if missing:
+        raise FileFormatError(f"{str(p)!r}: header {header} lacks column(s) {missing}")
+    cols = [header.index(c) for c in want]
+    if "radius" in header:
+        cols.append(header.index("radius"))
+        if all(c in header for c in ("red", "green", "blue")):
+            cols += [header.index(c) for c in ("red", "green", "blue")]
+    return a[:, cols]
+
+
+def _read_ply(p: Path):
+    import trimesh
+
+    geom = trimesh.load(p, process=False)
+    centers = np.asarray(geom.vertices, dtype=np.float64)
+    radii = None
+    raw = getattr(geom, "metadata", {}).get("_ply_raw", {})
+    vdata = raw.get("vertex", {}).get("data") if isinstance(raw, dict) else None
+    if vdata is not None and getattr(vdata, "dtype", None) is not None and vdata.dtype.names:
+        for name in ("radius", "scale"):
+            if name in vdata.dtype.names:
+                radii = np.asarray(vdata[name], dtype=np.float64).reshape(-1)
+                break
+    colors = None
+    vc = getattr(geom, "colors", None)
+    if vc is None and hasattr(geom, "visual") and getattr(geom.visual, "kind", None) == "vertex":
+        vc = geom.visual.vertex_colors
+    if vc is not None and len(vc) == len(centers):
+        colors = np.asarray(vc, dtype=np.float64)[:, :3] / 255.0
+    return centers, radii, colors

@@ -1,0 +1,193 @@
+"""Particle rendering with a BIH over spheres (Kinkelin, after Wächter & Keller).
+
+Each sphere (centre ``c``, radius ``r`` times ``radius_scale``) seen by a ray at
+distance ``d`` from its centre contributes opacity ``alpha = exp(-kappa (d / r)^2)``
+for ``d <= r`` (a Gaussian footprint, full at the centre) and its colour. Leaves
+come front to back from the packed BIH's ordered traversal; within a leaf its
+spheres are composited in order; early ray termination ends a ray. Spheres whose
+boxes overlap may composite slightly out of order (an approximation the paper
+accepts). A radius scale above 1 widens every plane by ``(scale - 1) * r_max``, so
+the tree built once stays conservative for any scale.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numba import njit, prange
+
+from ..camera import Camera
+from ..elements import ParticleSet
+from ..errors import ParameterError
+from ..index._bih_traversal import next_leaf, push_root, set_ray
+from ..kernels.camera import primary_ray
+from ..kernels.shade import write_pixel
+from ..kernels.tiles import tile_bounds, tile_count
+from ..index.bih import ParticleBIH
+from .dvr import _background_array, _check_size
+from .image import Image
+
+__all__ = ["render_particles", "DEFAULT_KAPPA"]
+
+#: default falloff: opacity exp(-4) ~ 0.02 at the rim
+DEFAULT_KAPPA = 4.0
+
+
+@njit(cache=True, inline="always")
+def sphere_alpha(ox, oy, oz, dx, dy, dz, cx, cy, cz, r, kappa):
+    """``exp(-kappa (d / r)^2)`` for the ray's distance ``d`` to centre ``c`` when
+    ``d <= r`` and the closest point lies ahead of the origin, else 0."""
+    px = cx - ox
+    py = cy - oy
+    pz = cz - oz
+    tc = px * dx + py * dy + pz * dz
+    if tc < 0.0:
+        return 0.0
+    qx = px - tc * dx
+    qy = py - tc * dy
+    qz = pz - tc * dz
+    d2 = qx * qx + qy * qy + qz * qz
+    r2 = r * r
+    if d2 > r2:
+        return 0.0
+    return math.exp(-kappa * d2 / r2)
+
+
+@njit(cache=True, error_model="numpy")
+def particle_tile(tile, nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
+                  radius_scale, grow, kappa, cam, width, height, ert, background, out_rgba, out_tests):
+    cap = depth + 2
+    st_node = np.empty(cap, np.int64)
+    st_t = np.empty((cap, 2), np.float64)
+    st_box = np.empty((cap, 6), np.float64)
+    leaf_box = np.empty(6, np.float64)
+    box = np.empty(6, np.float64)
+    for a in range(3):
+        box[a] = root_box[a] - grow
+        box[3 + a] = root_box[3 + a] + grow
+    ro = np.empty(3, np.float64)
+    rinv = np.empty(3, np.float64)
+    rflat = np.empty(3, np.bool_)
+    x0, x1, y0, y1 = tile_bounds(tile, width, height)
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            ox, oy, oz, dx, dy, dz = primary_ray(cam, px, py, width, height)
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            a = 0.0
+            tests = 0
+            hs = 0
+            if nodes.shape[0] > 0:
+                set_ray(ro, rinv, rflat, ox, oy, oz, dx, dy, dz)
+                hs = push_root(box, ro, rinv, rflat, 0.0, math.inf, st_node, st_t, st_box)
+            while a < ert:
+                leaf, t0, t1, hs = next_leaf(nodes, preorder, frame_lo, frame_step, grow, ro, rinv, rflat,
+                                             st_node, st_t, st_box, hs, leaf_box)
+                if leaf < 0:
+                    break
+                w = nodes[leaf]
+                first = (w >> 32) & 0x3FFFFFFF
+                count = w & 0xFFFFFFFF
+                for j in range(first, first + count):
+                    tests += 1
+                    al = sphere_alpha(ox, oy, oz, dx, dy, dz, centers[j, 0], centers[j, 1], centers[j, 2],
+                                      radii[j] * radius_scale, kappa)
+                    if al > 0.0:
+                        wt = (1.0 - a) * al
+                        r += wt * colors[j, 0]
+                        g += wt * colors[j, 1]
+                        b += wt * colors[j, 2]
+                        a += wt
+            write_pixel(out_rgba, py, px, r, g, b, a, background)
+            out_tests[py, px] = tests
+
+
+@njit(cache=True, parallel=True)
+def particle_kernel(nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
+                    radius_scale, grow, kappa, cam, width, height, ert, background, out_rgba, out_tests):
+    for tile in prange(tile_count(width, height)):
+        particle_tile(tile, nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
+                      radius_scale, grow, kappa, cam, width, height, ert, background, out_rgba, out_tests)
+
+
+def render_particles(
+    particles: ParticleSet | ParticleBIH,
+    camera: Camera,
+    width: int = 512,
+    height: int = 512,
+    *,
+    radius_scale: float = 1.0,
+    kappa: float = DEFAULT_KAPPA,
+    ert: float = 0.99,
+    background="transparent",
+    variant: str = "elaborate",
+    layout: str = "preorder",
+) -> Image:
+    """Render spheres with Gaussian opacity ``exp(-kappa (d / r)^2)`` through a BIH.
+
+    Parameters
+    ----------
+    particles : ParticleSet or ParticleBIH
+        A set (its BIH is built here; ``stats["build_ms"]``) or a prebuilt
+        :class:`~sparsecast.index.bih.ParticleBIH`, reused for any radius scale.
+    camera : Camera
+        In the particles' world space (``Camera.orbit(particles, ...)`` frames them).
+    width, height : int
+    radius_scale : float
+        Interactive radius multiplier (> 0).
+    kappa : float
+        Falloff (>= 0): opacity at the rim is ``exp(-kappa)``.
+    ert : float
+        Early ray termination threshold in (0, 1].
+    background : str or sequence
+        As :func:`sparsecast.render`.
+    variant, layout : str
+        BIH build options when ``particles`` is a set.
+
+    Returns
+    -------
+    Image
+        Premultiplied RGBA; ``stats``: ``ms``, ``build_ms``, ``sphere_tests`` and the tree's sizes.
+        An empty set gives the background.
+    """
+    if not isinstance(camera, Camera):
+        raise ParameterError(f"camera: expected a sparsecast.Camera, got {type(camera).__name__}")
+    width, height = _check_size(width, height)
+    for name, v, ok, want in (("radius_scale", radius_scale, lambda x: x > 0, "a positive number"),
+                              ("kappa", kappa, lambda x: x >= 0, "a non-negative number"),
+                              ("ert", ert, lambda x: 0 < x <= 1, "a number in (0, 1]")):
+        try:
+            fv = float(v)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{name}: expected {want}, got {v!r}") from None
+        if not (math.isfinite(fv) and ok(fv)):
+            raise ParameterError(f"{name}: expected {want}, got {v!r}")
+    build_ms = 0.0
+    if isinstance(particles, ParticleSet):
+        t0 = time.perf_counter()
+        particles = ParticleBIH.build(particles, variant, layout)
+        build_ms = (time.perf_counter() - t0) * 1e3
+    elif not isinstance(particles, ParticleBIH):
+        raise ParameterError(f"particles: expected a ParticleSet or ParticleBIH, got {type(particles).__name__}")
+    p = particles.packed
+    scale = float(radius_scale)
+    grow = max(scale - 1.0, 0.0) * particles.max_radius
+    rgba = np.empty((height, width, 4), np.float32)
+    tests = np.empty((height, width), np.int32)
+    args = (p.words, p.preorder, p.frame_lo, p.frame_step, p.root_box, p.depth, particles.centers,
+            particles.radii, particles.colors, scale, grow, float(kappa))
+    bg = _background_array(background)
+    t0 = time.perf_counter()
+    particle_kernel(*args, camera.ray_params(1, 1), 1, 1, float(ert), bg, np.empty((1, 1, 4), np.float32),
+                    np.empty((1, 1), np.int32))  # compile / load outside the timing
+    t1 = time.perf_counter()
+    particle_kernel(*args, camera.ray_params(width, height), width, height, float(ert), bg, rgba, tests)
+    ms = (time.perf_counter() - t1) * 1e3
+    stats = {"ms": ms, "jit_ms": (t1 - t0) * 1e3, "build_ms": build_ms, "rays": width * height,
+             "sphere_tests": int(tests.sum(dtype=np.int64)), "particles": len(particles.radii),
+             "radius_scale": scale, "kappa": float(kappa), "width": width, "height": height,
+             "index": "bih", "nodes": p.n_nodes, "bytes": p.nbytes}
+    return Image(rgba, stats, tests)
