@@ -10,7 +10,7 @@ import numpy as np
 from .errors import ParameterError
 from .volume import Volume
 
-__all__ = ["nbody_blobs", "sphere_shell", "demo_volume"]
+__all__ = ["nbody_blobs", "sphere_shell", "demo_volume", "nbody_particles"]
 
 
 def nbody_blobs(
@@ -99,3 +99,30 @@ def sphere_shell(size: int = 64, *, radius: float = 0.35, thickness: float = 0.0
 def demo_volume() -> Volume:
     """The built-in demo: a 256^3 float32 n-body-like field (see :func:`nbody_blobs`)."""
     return nbody_blobs(256)
+
+
+def nbody_particles(n: int = 100_000, *, n_clusters: int = 12, seed: int = 0):
+    """An n-body-like particle set (:class:`~sparsecast.elements.ParticleSet`) in the
+    unit cube: Plummer-like clusters (heavy-tailed radial profile) plus a sparse
+    uniform background, radii shrinking in dense cores, colours by cluster."""
+    from .elements import ParticleSet
+
+    if int(n) != n or n < 0:
+        raise ParameterError(f"n: expected a non-negative integer, got {n!r}")
+    n = int(n)
+    rng = np.random.default_rng(seed)
+    n_bg = n // 10
+    centres = rng.uniform(0.2, 0.8, size=(n_clusters, 3))
+    scale = rng.uniform(0.01, 0.05, n_clusters)
+    which = rng.integers(0, n_clusters, n - n_bg)
+    # Plummer radial profile: r = a / sqrt(u^(-2/3) - 1), capped at 10 a.
+    u = rng.uniform(1e-3, 1.0, n - n_bg)
+    rad = np.minimum(1.0 / np.sqrt(u ** (-2.0 / 3.0) - 1.0 + 1e-12), 10.0) * scale[which]
+    dirs = rng.normal(size=(n - n_bg, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True) + 1e-300
+    pos = np.concatenate([centres[which] + dirs * rad[:, None], rng.uniform(0, 1, (n_bg, 3))])
+    radii = np.concatenate([0.002 + 0.004 * np.minimum(rad / scale[which], 3.0) / 3.0,
+                            np.full(n_bg, 0.004)])
+    palette = np.array([[0.99, 0.75, 0.35], [0.45, 0.7, 1.0], [0.95, 0.4, 0.45], [0.6, 0.95, 0.6]])
+    colors = np.concatenate([palette[which % len(palette)], np.full((n_bg, 3), 0.6)])
+    return ParticleSet(pos, radii, colors, name="nbody-particles")
