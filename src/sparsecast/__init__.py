@@ -11,6 +11,7 @@
 
 from . import datasets
 from .camera import Camera
+from .elements import ParticleSet
 from .errors import (
     FileFormatError,
     ParameterError,
@@ -21,6 +22,8 @@ from .errors import (
 from .index import SpatialIndex, available_indices, build_index
 from .io import load_volume, save_volume
 from .renderers import Image, render
+from .io.particles import load_particles
+from .renderers.particles import render_particles
 from .transfer import PRESETS, TransferFunction
 from .volume import BrickStats, Volume
 
@@ -42,6 +45,7 @@ __all__ = [
     "FileFormatError",
     "Image",
     "PRESETS",
+    "ParticleSet",
     "ParameterError",
     "SparsecastError",
     "SpatialIndex",
@@ -52,8 +56,10 @@ __all__ = [
     "available_indices",
     "build_index",
     "datasets",
+    "load_particles",
     "load_volume",
     "render",
+    "render_particles",
     "save_volume",
     "show",
     "__version__",
