@@ -57,20 +57,28 @@ class ResultStore:
 
     def _load(self) -> None:
         assert self.path is not None
-        lines = self.path.read_text().splitlines()
+        text = self.path.read_text()
+        lines = text.splitlines()
         for n, line in enumerate(lines, 1):
             if not line.strip():
                 continue
             try:
                 rec = json.loads(line)
             except json.JSONDecodeError:
-                if n == len(lines):
-                    break  # a line cut short by a kill: that case simply runs again
+                if n == len(lines) and not text.endswith("\n"):
+                    # A line cut short by a kill: drop it (that case runs again) so the
+                    # next record starts on a line of its own.
+                    with open(self.path, "r+") as f:
+                        f.truncate(len(text.encode()) - len(line.encode()))
+                    return
                 raise FileFormatError(
                     f"journal {str(self.path)!r}: line {n} is not JSON; expected one record per line "
                     "(delete the file or pass --fresh to start over)"
                 ) from None
             self._remember(rec)
+        if text and not text.endswith("\n") and self._keys:
+            with open(self.path, "a") as f:  # the last record made it, its newline did not
+                f.write("\n")
 
     def _remember(self, rec: dict[str, Any]) -> None:
         self.records.append(rec)

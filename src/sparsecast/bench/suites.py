@@ -26,12 +26,14 @@ def orbit_views(steps: int) -> list[tuple[float, float]]:
     Returns ``(azimuth, elevation)`` pairs for :meth:`Camera.orbit` (degrees):
     around z the azimuth turns at elevation 0; around x the elevation turns at
     azimuth 0 (the eye moves in the y-z plane); around y the elevation turns at
-    azimuth 90 (x-z plane). Views shared by two circles appear once.
+    azimuth 90 (x-z plane). The angles start half a step in, so that for an even
+    ``steps`` the circles share no eye position (at 0 and 180 degrees they would
+    meet on the axes); views equal in angles appear once.
     """
     if steps < 1:
         raise ParameterError(f"steps: expected at least 1 view per axis, got {steps}")
     step = 360.0 / steps
-    angles = [round(i * step, 6) for i in range(steps)]
+    angles = [round((i + 0.5) * step, 6) for i in range(steps)]
     views: list[tuple[float, float]] = []
     for v in [(a, 0.0) for a in angles] + [(0.0, a) for a in angles] + [(90.0, a) for a in angles]:
         if v not in views:

@@ -1,0 +1,196 @@
+"""Benchmark runs: suites as data, the case plan, resuming, sections, peers (no timing asserted)."""
+
+from __future__ import annotations
+
+import importlib.machinery
+import json
+import sys
+import types
+
+import numpy as np
+import pytest
+
+import sparsecast as sc
+from sparsecast.bench.harness import BenchConfig, run_benchmarks
+from sparsecast.bench.progress import Progress, ResultStore, case_key
+from sparsecast.bench.suites import SUITES, get_suite, orbit_views, view_name
+from sparsecast.errors import FileFormatError, ParameterError
+
+
+def test_orbit_views_turn_around_three_axes():
+    views = orbit_views(4)
+    angles = (45.0, 135.0, 225.0, 315.0)
+    assert views == [(a, 0.0) for a in angles] + [(0.0, e) for e in angles] + [(90.0, e) for e in angles]
+    vol = sc.Volume(np.zeros((5, 5, 5), np.float32))
+    eyes = np.array([sc.Camera.orbit(vol, *v).eye for v in views]) - vol.center
+    # around z (eye in the x-y plane), around x (y-z plane), around y (x-z plane)
+    assert np.allclose(eyes[:4, 2], 0) and np.allclose(eyes[4:8, 0], 0) and np.allclose(eyes[8:, 1], 0)
+    # an even step count never puts two views at the same eye position
+    assert len({tuple(np.round(e, 6)) for e in eyes}) == 12
+    assert len(orbit_views(180)) == 540  # the papers' 2-degree steps
+    with pytest.raises(ParameterError):
+        orbit_views(0)
+
+
+def test_suites_cover_the_issue():
+    paper = get_suite("paper")
+    assert {(512, 512), (1024, 1024)} == set(paper.sizes)
+    assert {"demo-128", "demo", "demo-512"} <= set(paper.dataset_names())
+    assert paper.methods is None  # every registered index, discovered at run time
+    assert paper.dense_tf and set(paper.peers) == {"vtk", "yt"} and set(paper.sections) == {"bih", "surface"}
+    assert SUITES["quick"].dataset_names() == [n for n, d in sc.bench.DATASETS.items() if d.default]
+    with pytest.raises(ParameterError, match="nope"):
+        get_suite("nope")
+
+
+def _keys(records):
+    return [case_key(r) for r in records if r["phase"] not in ("skipped",)]
+
+
+def test_run_plan_and_ratios(tiny_config):
+    records = run_benchmarks(tiny_config)
+    keys = _keys(records)
+    assert len(keys) == len(set(keys))
+    renders = [r for r in records if r["phase"] == "render"]
+    # 2 TFs x 2 methods x 2 sizes x 2 views
+    assert len(renders) == 16
+    assert {(r["width"], r["height"]) for r in renders} == {(16, 16), (12, 8)}
+    assert {r["view"] for r in renders} == {view_name((30.0, 20.0)), view_name((0.0, 90.0))}
+    for r in renders:
+        assert r["exact"] is True and r["samples_nonempty"] <= r["samples"]
+        assert r["samples_vs_oracle"] == pytest.approx(r["samples"] / r["samples_nonempty"])
+        if r["method"] == "naive":
+            assert r["speedup_vs_naive"] == pytest.approx(1.0)
+    # ESS takes fewer samples than naive on the sparse TF, the same on the dense one.
+    for size in ((16, 16), (12, 8)):
+        def samples(method, tf):
+            return sum(r["samples"] for r in renders if r["method"] == method and r["tf"] == tf
+                       and (r["width"], r["height"]) == size)
+        assert samples("grid-pc", "default") < samples("naive", "default")
+        assert samples("grid-pc", "dense") == samples("naive", "dense")
+
+
+class _StopAfter(Progress):
+    """Raises KeyboardInterrupt once ``n`` cases are done (a Ctrl-C mid-run)."""
+
+    def __init__(self, n: int) -> None:
+        super().__init__(0)
+        self.n = n
+
+    def advance(self, n: int = 1) -> None:
+        super().advance(n)
+        if self._session_done >= self.n:
+            raise KeyboardInterrupt
+
+
+def test_interrupted_run_resumes_without_losing_or_repeating_cases(tiny_config, tmp_path):
+    journal = tmp_path / "run.jsonl"
+    with pytest.raises(KeyboardInterrupt):
+        run_benchmarks(tiny_config, progress=_StopAfter(9), store=ResultStore(journal))
+    kept = [json.loads(line) for line in journal.read_text().splitlines()]
+    assert len(kept) == 9
+    with open(journal, "a") as f:
+        f.write('{"dataset": "tiny", "pha')  # a line cut short by the kill
+
+    progress = Progress(0)
+    store = ResultStore(journal)
+    assert store.resumed == 9
+    records = run_benchmarks(tiny_config, progress=progress, store=store)
+    keys = _keys(records)
+    assert len(keys) == len(set(keys))  # nothing measured twice
+    assert sum(r["phase"] == "render" for r in records) == 16  # nothing lost
+    # The finished cases were kept as measured, not re-measured.
+    by_key = {case_key(r): r for r in records}
+    for old in kept:
+        assert by_key[case_key(old)]["ms"] == old["ms"]
+    assert progress.done_count == progress.total == len(keys)
+
+    # A third run finds everything done and measures nothing.
+    again = ResultStore(journal)
+    n_lines = len(journal.read_text().splitlines())
+    run_benchmarks(tiny_config, store=again)
+    assert len(journal.read_text().splitlines()) == n_lines
+
+
+def test_journal_with_garbage_in_the_middle_is_an_error(tmp_path):
+    journal = tmp_path / "bad.jsonl"
+    journal.write_text('not json\n{"phase": "load"}\n')
+    with pytest.raises(FileFormatError, match="line 1"):
+        ResultStore(journal)
+    assert ResultStore(journal, fresh=True).records == []
+
+
+@pytest.fixture
+def fake_section(monkeypatch):
+    """A section module ``sparsecast.bench.fakesec`` counting its runs."""
+    module = types.ModuleType("sparsecast.bench.fakesec")
+    module.__spec__ = importlib.machinery.ModuleSpec("sparsecast.bench.fakesec", None)
+    module.calls = []
+
+    def run(datasets, *, width, height, repeat, warmup, record):
+        module.calls.append((datasets, width, height, repeat, warmup))
+        record(dataset="mesh", method="rbvh", phase="render", ms=1.5, psnr=31.0, nodes=7)
+        record(dataset="mesh", method="bvh", phase="build", ms=0.5, bytes=64)
+
+    module.run = run
+    monkeypatch.setitem(sys.modules, "sparsecast.bench.fakesec", module)
+    return module
+
+
+def test_sections_are_recorded_once_and_missing_ones_skipped(tiny_dataset, fake_section, tmp_path):
+    cfg = BenchConfig(datasets=[], methods=["naive"], sizes=[(20, 10)], repeat=2, warmup=0, irt=False,
+                      sections=["fakesec", "notthere"])
+    store = ResultStore(tmp_path / "s.jsonl")
+    records = run_benchmarks(cfg, store=store)
+    assert fake_section.calls == [(None, 20, 10, 2, 1)]
+    sec = [r for r in records if r.get("section") == "fakesec"]
+    assert [(r["method"], r["phase"]) for r in sec] == [("rbvh", "render"), ("bvh", "build")]
+    assert sec[0]["psnr"] == 31.0 and sec[0]["machine"]["cores"]
+    skipped = [r for r in records if r["phase"] == "skipped"]
+    assert [r["method"] for r in skipped] == ["notthere"] and "not there" in skipped[0]["reason"]
+    # Resumed: the finished section is not run again.
+    run_benchmarks(cfg, store=ResultStore(tmp_path / "s.jsonl"))
+    assert len(fake_section.calls) == 1
+
+
+def test_a_failing_section_is_noted_and_the_run_goes_on(tiny_dataset, fake_section):
+    def boom(*args, **kwargs):
+        raise RuntimeError("kernel exploded")
+
+    fake_section.run = boom
+    cfg = BenchConfig(datasets=[tiny_dataset], methods=["naive"], sizes=[(8, 8)], views=[(0.0, 0.0)],
+                      repeat=1, warmup=0, dense_tf=False, irt=False, sections=["fakesec"])
+    records = run_benchmarks(cfg)
+    assert any(r["phase"] == "render" for r in records)
+    (note,) = [r for r in records if r["phase"] == "skipped"]
+    assert "kernel exploded" in note["reason"]
+
+
+@pytest.mark.parametrize("peer", ["vtk", "yt"])
+def test_peer_renders_the_same_case(peer, tiny_dataset, tmp_path):
+    pytest.importorskip(peer)
+    cfg = BenchConfig(datasets=[tiny_dataset], methods=["naive", "grid-pc"], sizes=[(24, 16)],
+                      views=[(30.0, 20.0), (90.0, 45.0), (0.0, 0.0)], repeat=1, warmup=0, dense_tf=False,
+                      irt=False, peers=[peer], peer_views=2, images_dir=tmp_path / "img")
+    records = run_benchmarks(cfg)
+    peer_recs = [r for r in records if r["method"] == peer]
+    assert [r["view"] for r in peer_recs] == ["az30_el20", "az90_el45"]  # the first peer_views views
+    for r in peer_recs:
+        assert r["peer"] and r["ms"] > 0 and r["ratio_to_best"] > 0
+        # The same volume, camera, step and TF: close to our image (a wrong axis order,
+        # camera or opacity scale drops this below ~20 dB).
+        assert r["psnr_vs_naive"] > 30.0, r
+    saved = sorted(p.name for p in (tmp_path / "img").iterdir())
+    assert saved == sorted([f"tiny_default_24x16_az30_el20_{peer}.png", "tiny_default_24x16_az30_el20_sparsecast.png"])
+
+
+def test_missing_peer_is_skipped_with_the_reason(tiny_dataset, monkeypatch):
+    from sparsecast.bench.peers import vtk_peer
+
+    monkeypatch.setattr(vtk_peer, "unavailable_reason", lambda: "vtk is not installed (test)")
+    cfg = BenchConfig(datasets=[tiny_dataset], methods=["naive"], sizes=[(8, 8)], views=[(0.0, 0.0)],
+                      repeat=1, warmup=0, dense_tf=False, irt=False, peers=["vtk"])
+    records = run_benchmarks(cfg)
+    (note,) = [r for r in records if r["phase"] == "skipped"]
+    assert note["method"] == "vtk" and "not installed" in note["reason"]
+    assert not any(r["method"] == "vtk" and r["phase"] == "render" for r in records)
