@@ -37,6 +37,11 @@ def test_suites_cover_the_issue():
     assert {(512, 512), (1024, 1024)} == set(paper.sizes)
     assert {"demo-128", "demo", "demo-512"} <= set(paper.dataset_names())
     assert paper.methods is None  # every registered index, discovered at run time
+    specs = paper.method_specs()
+    assert set(sc.available_indices()) <= set(specs)
+    if "bih" in specs:  # and the BIH's approximate modes
+        assert {"bih:mode=single-sample", "bih:mode=multi-sample"} <= set(specs)
+    assert SUITES["quick"].method_specs() == sc.available_indices()
     assert paper.dense_tf and set(paper.peers) == {"vtk", "yt"} and set(paper.sections) == {"bih", "surface"}
     assert SUITES["quick"].dataset_names() == [n for n, d in sc.bench.DATASETS.items() if d.default]
     with pytest.raises(ParameterError, match="nope"):

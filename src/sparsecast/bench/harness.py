@@ -95,7 +95,7 @@ class BenchConfig:
         """The config of ``suite``; keyword arguments that are not None replace its fields."""
         cfg = cls(
             datasets=suite.dataset_names(),
-            methods=list(suite.methods) if suite.methods is not None else available_indices(),
+            methods=suite.method_specs(),
             sizes=list(suite.sizes), views=list(suite.views), repeat=suite.repeat, warmup=suite.warmup,
             dense_tf=suite.dense_tf, irt=suite.irt, peers=list(suite.peers), sections=list(suite.sections),
         )

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 from ..errors import ParameterError
 from .datasets import DATASETS
 
-__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name"]
+__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method"]
 
 
 def orbit_views(steps: int) -> list[tuple[float, float]]:
@@ -59,6 +59,8 @@ class Suite:
     methods : tuple of str or None
         Index specs (``name[:key=value,...]``); ``None``: every registered index,
         discovered at run time so new indices join without editing suites.
+    index_modes : bool
+        With ``methods=None``, also every index's other modes (:func:`every_method`).
     sizes : tuple of (width, height)
     views : tuple of (azimuth, elevation)
     dense_tf : bool
@@ -78,6 +80,7 @@ class Suite:
     description: str
     datasets: tuple[str, ...] | None = None
     methods: tuple[str, ...] | None = None
+    index_modes: bool = False
     sizes: tuple[tuple[int, int], ...] = ((512, 512),)
     views: tuple[tuple[float, float], ...] = ((30.0, 20.0), (0.0, 0.0))
     dense_tf: bool = True
@@ -91,10 +94,32 @@ class Suite:
         """A copy with the given fields replaced (fields left as None are kept)."""
         return replace(self, **{k: v for k, v in changes.items() if v is not None})
 
+    def method_specs(self) -> list[str]:
+        if self.methods is not None:
+            return list(self.methods)
+        if self.index_modes:
+            return every_method()
+        from ..index import available_indices
+
+        return available_indices()
+
     def dataset_names(self) -> list[str]:
         if self.datasets is not None:
             return list(self.datasets)
         return [n for n, d in DATASETS.items() if d.default]
+
+
+def every_method() -> list[str]:
+    """Every registered index, plus its other modes where it has them (the BIH's
+    approximate ``single-sample`` / ``multi-sample`` rendering), as method specs."""
+    from ..index import available_indices
+
+    methods = available_indices()
+    if "bih" in methods:
+        from ..index import bih
+
+        methods += [f"bih:mode={m}" for m in bih.MODES if m != "ess"]
+    return methods
 
 
 def _paper_datasets() -> tuple[str, ...]:
@@ -114,6 +139,7 @@ SUITES: dict[str, Suite] = {
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
             views=tuple(orbit_views(4)),
+            index_modes=True,
             repeat=1,
             warmup=0,
             peers=("vtk", "yt"),
