@@ -199,3 +199,18 @@ def test_missing_peer_is_skipped_with_the_reason(tiny_dataset, monkeypatch):
     (note,) = [r for r in records if r["phase"] == "skipped"]
     assert note["method"] == "vtk" and "not installed" in note["reason"]
     assert not any(r["method"] == "vtk" and r["phase"] == "render" for r in records)
+
+
+def test_dense_tf_and_approximate_modes_on_fewer_views(tiny_config):
+    if "bih" not in sc.available_indices():
+        pytest.skip("no BIH index registered")
+    tiny_config.methods = ["naive", "bih:mode=single-sample"]
+    tiny_config.sizes = [(16, 16)]
+    tiny_config.dense_views = 1
+    records = run_benchmarks(tiny_config)
+    renders = [r for r in records if r["phase"] == "render"]
+    assert {r["view"] for r in renders if r["tf"] == "dense"} == {"az30_el20"}
+    assert len({r["view"] for r in renders if r["tf"] == "default"}) == 2
+    approx = [r for r in renders if r["method"] == "bih:mode=single-sample"]
+    assert approx and all(r["exact"] is False and 0 < r["psnr_vs_naive"] for r in approx)
+    assert all("psnr_vs_naive" not in r for r in renders if r["method"] == "naive")

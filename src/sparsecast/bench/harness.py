@@ -66,6 +66,9 @@ class BenchConfig:
         entries against the prefix-count query.
     peers : list of str
         Peer renderers (``vtk``, ``yt``) run on the same cases; missing ones are skipped.
+    dense_views : int or None
+        The dense TF renders only the first this many views (None: all): with no
+        empty space every index costs about a naive frame, and a few views show it.
     peer_views : int
         Peers render the first this many views (they are much slower than the indices).
     sections : list of str
@@ -86,6 +89,7 @@ class BenchConfig:
     dense_tf: bool = True
     irt: bool = True
     peers: list[str] = field(default_factory=list)
+    dense_views: int | None = None
     peer_views: int = 2
     sections: list[str] = field(default_factory=list)
     images_dir: Path | None = None
@@ -97,7 +101,8 @@ class BenchConfig:
             datasets=suite.dataset_names(),
             methods=suite.method_specs(),
             sizes=list(suite.sizes), views=list(suite.views), repeat=suite.repeat, warmup=suite.warmup,
-            dense_tf=suite.dense_tf, irt=suite.irt, peers=list(suite.peers), sections=list(suite.sections),
+            dense_tf=suite.dense_tf, dense_views=suite.dense_views, peer_views=suite.peer_views,
+            irt=suite.irt, peers=list(suite.peers), sections=list(suite.sections),
         )
         for key, value in overrides.items():
             if value is not None:
@@ -276,12 +281,16 @@ class _Run:
             out.insert(0, "irt")
         return out
 
-    def _views(self, peer: bool = False) -> list[tuple[float, float]]:
-        return self.cfg.views[: self.cfg.peer_views] if peer else self.cfg.views
+    def _views(self, tf: str, peer: bool = False) -> list[tuple[float, float]]:
+        """The views rendered for TF ``tf`` (by our methods, or by the peers)."""
+        views = self.cfg.views
+        if tf == "dense" and self.cfg.dense_views is not None:
+            views = views[: self.cfg.dense_views]
+        return views[: self.cfg.peer_views] if peer else views
 
     def _render_keys(self, ds: str, tf: str, method: str, peer: bool = False) -> list[dict[str, Any]]:
         return [dict(dataset=ds, tf=tf, method=method, width=w, height=h, view=view_name(v), phase="render")
-                for w, h in self.cfg.sizes for v in self._views(peer)]
+                for w, h in self.cfg.sizes for v in self._views(tf, peer)]
 
     def _method_keys(self, ds: str, tf: str, spec: str) -> list[dict[str, Any]]:
         return ([dict(dataset=ds, tf=tf, method=spec, phase=p) for p in ("build_cold", "rebuild")]
@@ -421,7 +430,7 @@ class _TfCases:
         else:
             index = build_index(vol, tf, method, **opts)
         for w, h in cfg.sizes:
-            for i, view in enumerate(cfg.views):
+            for i, view in enumerate(run._views(tf_name)):
                 name = view_name(view)
                 if store.done(dataset=ds, tf=tf_name, method=spec, width=w, height=h, view=name, phase="render"):
                     continue
@@ -451,7 +460,7 @@ class _TfCases:
             run._skip(peer, "peer", f"{ds}/{tf_name}: {type(exc).__name__}: {exc}")
             return
         for w, h in cfg.sizes:
-            for i, view in enumerate(run._views(peer=True)):
+            for i, view in enumerate(run._views(tf_name, peer=True)):
                 name = view_name(view)
                 if run.store.done(dataset=ds, tf=tf_name, method=peer, width=w, height=h, view=name, phase="render"):
                     continue

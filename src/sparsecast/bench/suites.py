@@ -65,6 +65,8 @@ class Suite:
     views : tuple of (azimuth, elevation)
     dense_tf : bool
         Also run a TF with no empty space next to each dataset's sparse one.
+    dense_views : int or None
+        Views rendered with the dense TF (the first N; None: all).
     repeat, warmup : int
         Timed and untimed runs per measurement (views are already many samples
         of the frame time in the paper suite, so one timed run each is enough).
@@ -72,6 +74,8 @@ class Suite:
         Time the iterative range tree on TF tables.
     peers : tuple of str
         Other renderers to run on the same cases (``vtk``, ``yt``); missing ones are skipped.
+    peer_views : int
+        Views the peers render (the first N).
     sections : tuple of str
         Modules ``sparsecast.bench.<name>`` with a ``run(...)`` of their own tables.
     """
@@ -84,10 +88,12 @@ class Suite:
     sizes: tuple[tuple[int, int], ...] = ((512, 512),)
     views: tuple[tuple[float, float], ...] = ((30.0, 20.0), (0.0, 0.0))
     dense_tf: bool = True
+    dense_views: int | None = None
     repeat: int = 5
     warmup: int = 1
     irt: bool = True
     peers: tuple[str, ...] = ()
+    peer_views: int = 2
     sections: tuple[str, ...] = ()
 
     def with_overrides(self, **changes) -> "Suite":
@@ -140,6 +146,10 @@ SUITES: dict[str, Suite] = {
             sizes=((512, 512), (1024, 1024)),
             views=tuple(orbit_views(4)),
             index_modes=True,
+            # Budget (2 cores, ~30 min): 12 views with the sparse TF; with the dense one
+            # every index costs about a naive frame, which 2 views show; peers 1 view.
+            dense_views=2,
+            peer_views=1,
             repeat=1,
             warmup=0,
             peers=("vtk", "yt"),
