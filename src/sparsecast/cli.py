@@ -217,7 +217,8 @@ def bench(
     warmup: Annotated[Optional[int], typer.Option(help="Untimed runs before timing.")] = None,
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing (default half a voxel).")] = None,
     peer: Annotated[Optional[list[str]], typer.Option("--peer", help="Peer renderer run on the same cases: vtk, yt (repeatable; 'none' for none).")] = None,
-    peer_views: Annotated[int, typer.Option(help="Views the peers render (the first N).")] = 2,
+    peer_views: Annotated[Optional[int], typer.Option(help="Views the peers render (the first N; default 2, paper 1).")] = None,
+    dense_views: Annotated[Optional[int], typer.Option(help="Views rendered with the dense TF (the first N; default all, paper 2).")] = None,
     section: Annotated[Optional[list[str]], typer.Option("--section", help="Extra section module: bih, surface (repeatable; 'none' for none).")] = None,
     json_path: Annotated[Optional[Path], typer.Option("--json", help="Records file (default bench-results/bench-<time>.json, or bench-results/<suite>/records.json); a .jsonl journal beside it makes reruns resume.")] = None,
     report: Annotated[Optional[Path], typer.Option("--report", help="Write the Markdown report here (default with --suite: BENCHMARKS.md beside the records).")] = None,
@@ -247,7 +248,7 @@ def bench(
         raise ParameterError(f"--views: expected at least 1 view per axis, got {views}")
     cfg = BenchConfig.from_suite(
         plan, datasets=dataset, methods=method, sizes=sizes, repeat=repeat, warmup=warmup, dt=dt,
-        dense_tf=dense, views=orbit_views(views) if views else None, peer_views=peer_views,
+        dense_tf=dense, views=orbit_views(views) if views else None, peer_views=peer_views, dense_views=dense_views,
         peers=_none_list(peer), sections=_none_list(section),
     )
     _check_bench_names(cfg)
