@@ -11,7 +11,8 @@
 from .bvh import build_bvh
 from .index import Hits, SurfaceIndex, raycast
 from .mesh import MeshDataError, PointCloud, TriangleMesh
+from .rbvh import QUALITY, Quality, build_rbvh
 from .render import render_surface
 
-__all__ = ["build_bvh", "raycast", "render_surface", "Hits", "SurfaceIndex",
-           "TriangleMesh", "PointCloud", "MeshDataError"]
+__all__ = ["build_bvh", "build_rbvh", "raycast", "render_surface", "Hits", "SurfaceIndex",
+           "TriangleMesh", "PointCloud", "MeshDataError", "QUALITY", "Quality"]

@@ -147,8 +147,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         if ln > 0.0:
             nx, ny, nz = nx / ln, ny / ln, nz / ln
     else:
-        r = tile_rect[tile]
-        nx, ny, nz = tile_normal(atlas_normal, r[0], r[1], r[2], ha, hb)
+        nx, ny, nz = tile_normal(atlas_normal, tile_rect[tile, 0], tile_rect[tile, 1], tile_rect[tile, 2], ha, hb)
     return best, nx, ny, nz, face, tile, ha, hb
 
 

@@ -66,13 +66,13 @@ def tile_normal(normal, x0, y0, r, s, t):
     w10 = fs * (1.0 - ft)
     w01 = (1.0 - fs) * ft
     w11 = fs * ft
-    a = normal[y0 + j, x0 + i]
-    b = normal[y0 + j, x0 + i + 1]
-    c = normal[y0 + j + 1, x0 + i]
-    d = normal[y0 + j + 1, x0 + i + 1]
-    nx = w00 * a[0] + w10 * b[0] + w01 * c[0] + w11 * d[0]
-    ny = w00 * a[1] + w10 * b[1] + w01 * c[1] + w11 * d[1]
-    nz = w00 * a[2] + w10 * b[2] + w01 * c[2] + w11 * d[2]
+    y1, x1 = y0 + j, x0 + i
+    nx = (w00 * normal[y1, x1, 0] + w10 * normal[y1, x1 + 1, 0]
+          + w01 * normal[y1 + 1, x1, 0] + w11 * normal[y1 + 1, x1 + 1, 0])
+    ny = (w00 * normal[y1, x1, 1] + w10 * normal[y1, x1 + 1, 1]
+          + w01 * normal[y1 + 1, x1, 1] + w11 * normal[y1 + 1, x1 + 1, 1])
+    nz = (w00 * normal[y1, x1, 2] + w10 * normal[y1, x1 + 1, 2]
+          + w01 * normal[y1 + 1, x1, 2] + w11 * normal[y1 + 1, x1 + 1, 2])
     ln = math.sqrt(nx * nx + ny * ny + nz * nz)
     if ln > 0.0:
         return nx / ln, ny / ln, nz / ln
@@ -91,17 +91,21 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     Returns ``(t, s, u)``: the ray parameter (``inf`` on a miss) and the texel
     coordinates of the hit.
     """
-    P = tile_proj[k]
+    # Element reads, not row views: a view costs reference-count updates that
+    # threads contend on in this innermost loop.
     x0 = tile_rect[k, 0]
     y0 = tile_rect[k, 1]
     r = tile_rect[k, 2]
-    rx, ry, rz = ox - P[0], oy - P[1], oz - P[2]
-    s0 = rx * P[3] + ry * P[4] + rz * P[5]
-    ds = dx * P[3] + dy * P[4] + dz * P[5]
-    u0 = rx * P[6] + ry * P[7] + rz * P[8]
-    du = dx * P[6] + dy * P[7] + dz * P[8]
-    h0 = rx * P[9] + ry * P[10] + rz * P[11]
-    dh = dx * P[9] + dy * P[10] + dz * P[11]
+    rx, ry, rz = ox - tile_proj[k, 0], oy - tile_proj[k, 1], oz - tile_proj[k, 2]
+    ux, uy, uz = tile_proj[k, 3], tile_proj[k, 4], tile_proj[k, 5]
+    vx, vy, vz = tile_proj[k, 6], tile_proj[k, 7], tile_proj[k, 8]
+    wx, wy, wz = tile_proj[k, 9], tile_proj[k, 10], tile_proj[k, 11]
+    s0 = rx * ux + ry * uy + rz * uz
+    ds = dx * ux + dy * uy + dz * uz
+    u0 = rx * vx + ry * vy + rz * vz
+    du = dx * vx + dy * vy + dz * vz
+    h0 = rx * wx + ry * wy + rz * wz
+    dh = dx * wx + dy * wy + dz * wz
     ta, tb = _slab_tile(s0, ds, 0.0, r - 1.0, t_min, t_max)
     ta, tb = _slab_tile(u0, du, 0.0, r - 1.0, ta, tb)
     ta, tb = _slab_tile(h0, dh, tile_h[k, 0], tile_h[k, 1], ta, tb)

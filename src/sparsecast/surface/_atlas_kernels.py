@@ -1,0 +1,166 @@
+"""Atlas rasterization kernels (Numba, parallel over tiles; each tile owns its texels).
+
+Conventions as in :mod:`._rbvh_kernels`: texel ``(i, j)`` of tile ``k`` sits at
+texel coordinates ``(s, t) = (i, j)`` and is stored at
+``depth[y0 + j, x0 + i]``; depth is the height along ``W`` and the surface kept
+is the one nearest to a viewer on the ``+W`` side (the largest height).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._rbvh_kernels import EMPTY, EMPTY_TEST
+
+#: barycentric slack so texels exactly on a shared edge are covered by both triangles
+EDGE_EPS = 1e-6
+
+
+@njit(cache=True, inline="always")
+def _to_tile(P, x, y, z):
+    rx, ry, rz = x - P[0], y - P[1], z - P[2]
+    return (rx * P[3] + ry * P[4] + rz * P[5], rx * P[6] + ry * P[7] + rz * P[8],
+            rx * P[9] + ry * P[10] + rz * P[11])
+
+
+@njit(cache=True, parallel=True)
+def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris, faces, vnormals,
+                        depth, normal):
+    """Depth (max height) and interpolated vertex normal of each tile's triangles."""
+    for k in prange(tile_proj.shape[0]):
+        P = tile_proj[k]
+        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        for q in range(tile_start[k], tile_start[k] + tile_count[k]):
+            f = refs[q]
+            s0, t0, h0 = _to_tile(P, tris[f, 0, 0], tris[f, 0, 1], tris[f, 0, 2])
+            s1, t1, h1 = _to_tile(P, tris[f, 1, 0], tris[f, 1, 1], tris[f, 1, 2])
+            s2, t2, h2 = _to_tile(P, tris[f, 2, 0], tris[f, 2, 1], tris[f, 2, 2])
+            area2 = (s1 - s0) * (t2 - t0) - (s2 - s0) * (t1 - t0)
+            if abs(area2) < 1e-12:
+                continue  # edge-on in this projection: covers no texel centre
+            inv = 1.0 / area2
+            i_lo = max(0, int(math.ceil(min(s0, s1, s2) - 1e-6)))
+            i_hi = min(r - 1, int(math.floor(max(s0, s1, s2) + 1e-6)))
+            j_lo = max(0, int(math.ceil(min(t0, t1, t2) - 1e-6)))
+            j_hi = min(r - 1, int(math.floor(max(t0, t1, t2) + 1e-6)))
+            v0, v1, v2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            for j in range(j_lo, j_hi + 1):
+                for i in range(i_lo, i_hi + 1):
+                    b1 = ((i - s0) * (t2 - t0) - (s2 - s0) * (j - t0)) * inv
+                    b2 = ((s1 - s0) * (j - t0) - (i - s0) * (t1 - t0)) * inv
+                    b0 = 1.0 - b1 - b2
+                    if b0 < -EDGE_EPS or b1 < -EDGE_EPS or b2 < -EDGE_EPS:
+                        continue
+                    h = b0 * h0 + b1 * h1 + b2 * h2
+                    if h > depth[y0 + j, x0 + i]:
+                        depth[y0 + j, x0 + i] = h
+                        for c in range(3):
+                            normal[y0 + j, x0 + i, c] = (b0 * vnormals[v0, c] + b1 * vnormals[v1, c]
+                                                         + b2 * vnormals[v2, c])
+
+
+@njit(cache=True, parallel=True)
+def splat_points(tile_proj, tile_rect, tile_steps, tile_start, tile_count, refs, points, pnormals, radii,
+                 depth, normal):
+    """Oriented discs: every texel whose column meets a disc gets the disc's height there.
+
+    ``tile_steps[k]`` is the world size of a texel along ``U`` and ``V``.
+    """
+    for k in prange(tile_proj.shape[0]):
+        P = tile_proj[k]
+        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        du, dv = tile_steps[k, 0], tile_steps[k, 1]
+        for q in range(tile_start[k], tile_start[k] + tile_count[k]):
+            p = refs[q]
+            sc, tc, hc = _to_tile(P, points[p, 0], points[p, 1], points[p, 2])
+            # Disc normal in the tile frame (U, V scaled back to unit axes).
+            nu = (pnormals[p, 0] * P[3] + pnormals[p, 1] * P[4] + pnormals[p, 2] * P[5]) * du
+            nv = (pnormals[p, 0] * P[6] + pnormals[p, 1] * P[7] + pnormals[p, 2] * P[8]) * dv
+            nw = pnormals[p, 0] * P[9] + pnormals[p, 1] * P[10] + pnormals[p, 2] * P[11]
+            if abs(nw) < 1e-6:
+                continue
+            rad = radii[p]
+            i_lo = max(0, int(math.ceil(sc - rad / du)))
+            i_hi = min(r - 1, int(math.floor(sc + rad / du)))
+            j_lo = max(0, int(math.ceil(tc - rad / dv)))
+            j_hi = min(r - 1, int(math.floor(tc + rad / dv)))
+            for j in range(j_lo, j_hi + 1):
+                for i in range(i_lo, i_hi + 1):
+                    eu = (i - sc) * du
+                    ev = (j - tc) * dv
+                    eh = -(nu * eu + nv * ev) / nw  # stay in the disc's plane
+                    if eu * eu + ev * ev + eh * eh > rad * rad:
+                        continue
+                    h = hc + eh
+                    if h > depth[y0 + j, x0 + i]:
+                        depth[y0 + j, x0 + i] = h
+                        normal[y0 + j, x0 + i, 0] = pnormals[p, 0]
+                        normal[y0 + j, x0 + i, 1] = pnormals[p, 1]
+                        normal[y0 + j, x0 + i, 2] = pnormals[p, 2]
+
+
+@njit(cache=True, parallel=True)
+def dilate(tile_rect, depth, normal, passes):
+    """Grow every tile's surface by ``passes`` texels into empty texels.
+
+    A new depth extrapolates the neighbour's with its gradient (``2 h1 - h2``
+    along each direction that has two valid texels, else ``h1``), averaged over
+    directions; the normal is the neighbours' mean. The border keeps adjacent
+    tiles overlapping, so rays through a seam find a surface (no cracks).
+    """
+    for k in prange(tile_rect.shape[0]):
+        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        for _ in range(passes):
+            d_old = depth[y0:y0 + r, x0:x0 + r].copy()
+            for j in range(r):
+                for i in range(r):
+                    if d_old[j, i] > EMPTY_TEST:
+                        continue
+                    acc = 0.0
+                    cnt = 0
+                    nx = ny = nz = 0.0
+                    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                        i1, j1 = i + di, j + dj
+                        if i1 < 0 or i1 >= r or j1 < 0 or j1 >= r or d_old[j1, i1] < EMPTY_TEST:
+                            continue
+                        h1 = d_old[j1, i1]
+                        i2, j2 = i1 + di, j1 + dj
+                        if 0 <= i2 < r and 0 <= j2 < r and d_old[j2, i2] > EMPTY_TEST:
+                            acc += 2.0 * h1 - d_old[j2, i2]
+                        else:
+                            acc += h1
+                        cnt += 1
+                        nx += normal[y0 + j1, x0 + i1, 0]
+                        ny += normal[y0 + j1, x0 + i1, 1]
+                        nz += normal[y0 + j1, x0 + i1, 2]
+                    if cnt > 0:
+                        depth[y0 + j, x0 + i] = acc / cnt
+                        normal[y0 + j, x0 + i, 0] = nx / cnt
+                        normal[y0 + j, x0 + i, 1] = ny / cnt
+                        normal[y0 + j, x0 + i, 2] = nz / cnt
+
+
+@njit(cache=True, parallel=True)
+def tile_height_range(tile_rect, depth, pad):
+    """``(min, max)`` valid height per tile, widened by ``pad`` (tiles may be empty: (0, -1))."""
+    out = np.empty((tile_rect.shape[0], 2), np.float32)
+    for k in prange(tile_rect.shape[0]):
+        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        lo, hi = np.inf, -np.inf
+        for j in range(r):
+            for i in range(r):
+                h = depth[y0 + j, x0 + i]
+                if h > EMPTY_TEST:
+                    lo = min(lo, h)
+                    hi = max(hi, h)
+        if lo > hi:
+            out[k, 0], out[k, 1] = 0.0, -1.0
+        else:
+            out[k, 0], out[k, 1] = lo - pad[k], hi + pad[k]
+    return out
+
+
+__all__ = ["rasterize_triangles", "splat_points", "dilate", "tile_height_range", "EMPTY"]

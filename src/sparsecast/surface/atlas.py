@@ -1,0 +1,171 @@
+"""The tile atlas: per-leaf orthographic projections, row-wise packing, rasterization.
+
+Each RBVH leaf becomes a square ``R x R`` height-field tile: its primitives are
+projected orthographically along the leaf's mean normal ``W`` onto a rectangle
+spanned by ``U`` and ``V`` (12 floats: ``O, U, V, W``; see :mod:`._rbvh_kernels`),
+rasterized as the height nearest to a viewer on the ``+W`` side plus a normal
+layer, and given a :data:`BORDER` of dilated texels. Tiles are sorted by
+resolution and packed into shelves (rows) of one atlas.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._atlas_kernels import dilate, rasterize_triangles, splat_points, tile_height_range
+from ._rbvh_kernels import EMPTY, NORMAL_SCALE
+
+__all__ = ["Atlas", "BORDER", "pack_tiles", "tile_frames", "build_atlas"]
+
+#: dilated texels around the covered interior of every tile
+BORDER = 1
+#: smallest interior resolution: coarser tiles would make the dilated border as
+#: wide as the tile itself
+MIN_RES = 4
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """Tiles and their texels.
+
+    Attributes
+    ----------
+    tile_proj : (T, 12) float32
+        ``O, U, V, W`` per tile.
+    tile_h : (T, 2) float32
+        Height range of the valid texels (plus a margin).
+    tile_rect : (T, 3) int32
+        ``x0, y0, R`` of the tile in the atlas.
+    depth : (H, W) float32
+        Heights; ``EMPTY`` where no primitive covers a texel.
+    normal : (H, W, 3) int8
+        Unit normals times 127.
+    boxes : (T, 2, 3) float32
+        World bounding box of each tile's surface (for the BVH over leaves).
+    """
+
+    tile_proj: np.ndarray
+    tile_h: np.ndarray
+    tile_rect: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    boxes: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in (self.tile_proj, self.tile_h, self.tile_rect, self.depth, self.normal)))
+
+
+def pack_tiles(res: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:
+    """Shelf packing of square tiles of edge ``res``: largest first, left to right, row by row.
+
+    Returns ``(rect (T, 3) int32 with x0, y0, R; (height, width))``. Tiles never
+    overlap: within a row x-ranges are disjoint, and a row is as tall as its
+    first (largest) tile.
+    """
+    res = np.asarray(res, dtype=np.int64)
+    rect = np.zeros((len(res), 3), np.int32)
+    if len(res) == 0:
+        return rect, (1, 1)
+    width = int(max(res.max(), np.ceil(np.sqrt(np.sum(res * res) * 1.05))))
+    order = np.argsort(-res, kind="stable")
+    x = y = row_h = 0
+    for k in order:
+        r = int(res[k])
+        if x + r > width:
+            y += row_h
+            x = row_h = 0
+        if row_h == 0:
+            row_h = r
+        rect[k] = (x, y, r)
+        x += r
+    return rect, (y + row_h, width)
+
+
+def tile_frames(normals: np.ndarray) -> np.ndarray:
+    """Orthonormal ``(u, v, w)`` rows per tile, ``w`` the given (mean) normal."""
+    w = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    # The world axis least aligned with w gives a well-conditioned cross product.
+    a = np.zeros_like(w)
+    a[np.arange(len(w)), np.argmin(np.abs(w), axis=1)] = 1.0
+    u = np.cross(w, a)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(w, u)
+    return np.stack([u, v, w], axis=1)
+
+
+def _segment_reduce(values: np.ndarray, seg: np.ndarray, n: int, op) -> np.ndarray:
+    out = np.full((n,) + values.shape[1:], np.inf if op is np.minimum else -np.inf)
+    op.at(out, seg, values)
+    return out
+
+
+def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, tile_count: np.ndarray,
+                refs: np.ndarray, *, tris: np.ndarray | None = None, faces=None, vnormals=None,
+                points: np.ndarray | None = None, pnormals=None, radii=None) -> Atlas:
+    """Project, pack and rasterize one tile per leaf.
+
+    Parameters
+    ----------
+    normals : (T, 3)
+        Leaf mean normals (projection directions).
+    res : (T,) int
+        Interior resolution per tile (texels along an edge, without the border).
+    tile_start, tile_count, refs
+        Primitive references of each leaf.
+    tris, faces, vnormals
+        Triangle corners (m, 3, 3), faces and vertex normals (triangle meshes), or
+    points, pnormals, radii
+        Disc centres, normals and radii (point clouds).
+    """
+    n_tiles = len(res)
+    frames = tile_frames(np.asarray(normals, np.float64))
+    seg = np.repeat(np.arange(n_tiles), tile_count)
+    ref_frames = frames[seg]  # (n_refs, 3, 3)
+    if tris is not None:
+        corners = tris[refs]  # (n_refs, 3, 3)
+        proj = np.einsum("rak,rck->rca", ref_frames, corners)  # (n_refs, 3 corners, 3 axes)
+        lo_r, hi_r = proj.min(axis=1), proj.max(axis=1)
+        plo, phi = corners.min(axis=1), corners.max(axis=1)
+    else:
+        c = np.einsum("rak,rk->ra", ref_frames, points[refs])
+        rr = radii[refs][:, None]
+        lo_r, hi_r = c - rr, c + rr
+        plo, phi = points[refs] - rr, points[refs] + rr
+    lo = _segment_reduce(lo_r, seg, n_tiles, np.minimum)
+    hi = _segment_reduce(hi_r, seg, n_tiles, np.maximum)
+    res = np.maximum(np.asarray(res, np.int64), MIN_RES)
+    ext = hi[:, :2] - lo[:, :2]
+    # A degenerate (line-like) extent still needs a finite texel size.
+    steps = np.maximum(ext / (res[:, None] - 1), 1e-6 * ext.max(axis=1, keepdims=True) + 1e-30)
+    r_tot = res + 2 * BORDER
+    origin_uvw = np.stack([lo[:, 0] - BORDER * steps[:, 0], lo[:, 1] - BORDER * steps[:, 1], lo[:, 2]], 1)
+    o = np.einsum("ta,tak->tk", origin_uvw, frames)
+    proj = np.concatenate([o, frames[:, 0] / steps[:, :1], frames[:, 1] / steps[:, 1:], frames[:, 2]], axis=1)
+    rect, (h, w) = pack_tiles(r_tot)
+    depth = np.full((h, w), EMPTY, np.float32)
+    normal = np.zeros((h, w, 3), np.float32)
+    start = np.asarray(tile_start, np.int64)
+    count = np.asarray(tile_count, np.int64)
+    if tris is not None:
+        rasterize_triangles(proj, rect, start, count, refs, tris, faces, vnormals, depth, normal)
+    else:
+        splat_points(proj, rect, steps, start, count, refs, points, pnormals, radii, depth, normal)
+    dilate(rect, depth, normal, BORDER)
+    pad = 0.01 * steps.max(axis=1)  # keep grazing hits at the extreme heights
+    tile_h = tile_height_range(rect, depth, pad)
+    # World box of a tile: its oriented box, cut down to the primitives' box grown
+    # by the dilated border (dilation extrapolates at most a few texels out).
+    grow = (BORDER + 1) * steps.max(axis=1)
+    u, v, w = frames[:, 0], frames[:, 1], frames[:, 2]
+    ext_s = ((r_tot - 1) * steps[:, 0])[:, None]
+    ext_t = ((r_tot - 1) * steps[:, 1])[:, None]
+    corners = np.stack([o + a * ext_s * u + b * ext_t * v + tile_h[:, c:c + 1] * w
+                        for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    box_lo = np.maximum(corners.min(axis=0), _segment_reduce(plo, seg, n_tiles, np.minimum) - grow[:, None])
+    box_hi = np.minimum(corners.max(axis=0), _segment_reduce(phi, seg, n_tiles, np.maximum) + grow[:, None])
+    boxes = np.stack([box_lo, box_hi], axis=1).astype(np.float32)
+    nrm = np.clip(np.rint(normal * NORMAL_SCALE), -127, 127).astype(np.int8)
+    return Atlas(proj.astype(np.float32), tile_h, rect, depth, nrm, boxes)
