@@ -375,6 +375,11 @@ def view(
     server.serve_forever()
 
 
+from .surface.cli import render_mesh  # noqa: E402  (its heavy imports are deferred)
+
+app.command("render-mesh")(render_mesh)
+
+
 def main() -> None:
     """Console entry point: bad input becomes one line on stderr and exit status 2."""
     try:
