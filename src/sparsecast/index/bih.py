@@ -415,6 +415,11 @@ class BIH(SpatialIndex):
         Approximate modes: LoD cut (defaults: unlimited, 0.75, 0.01).
     layout : {"preorder", "chunks"}, chunk_depth : int
         Packed node order.
+
+    Notes
+    -----
+    An element set can be empty (no brick non-empty for the TF, no voxel at the
+    threshold): the index then has 0 nodes and every ray sees the background.
     """
 
     name = "bih"
@@ -435,7 +440,10 @@ class BIH(SpatialIndex):
         clock = time.perf_counter
         t0 = clock()
         if mode == "ess":
-            b = int(brick) if not isinstance(brick, bool) else 0
+            try:
+                b = int(brick) if not isinstance(brick, bool) else 0
+            except (TypeError, ValueError):
+                b = 0
             if b != brick or not 2 <= b <= 64:
                 raise ParameterError(f"brick: expected an integer in 2..64 (voxels per edge), got {brick!r}")
             self.brick = b
