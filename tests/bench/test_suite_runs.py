@@ -19,15 +19,16 @@ from sparsecast.errors import FileFormatError, ParameterError
 
 def test_orbit_views_turn_around_three_axes():
     views = orbit_views(4)
-    angles = (45.0, 135.0, 225.0, 315.0)
+    angles = (22.5, 112.5, 202.5, 292.5)
     assert views == [(a, 0.0) for a in angles] + [(0.0, e) for e in angles] + [(90.0, e) for e in angles]
     vol = sc.Volume(np.zeros((5, 5, 5), np.float32))
     eyes = np.array([sc.Camera.orbit(vol, *v).eye for v in views]) - vol.center
     # around z (eye in the x-y plane), around x (y-z plane), around y (x-z plane)
     assert np.allclose(eyes[:4, 2], 0) and np.allclose(eyes[4:8, 0], 0) and np.allclose(eyes[8:, 1], 0)
-    # an even step count never puts two views at the same eye position
-    assert len({tuple(np.round(e, 6)) for e in eyes}) == 12
-    assert len(orbit_views(180)) == 540  # the papers' 2-degree steps
+    for n in (1, 2, 3, 4, 5, 8, 180):  # no two views at the same eye position
+        eyes = np.array([sc.Camera.orbit(vol, *v).eye for v in orbit_views(n)])
+        assert len({tuple(np.round(e, 6)) for e in eyes}) == len(eyes)
+    assert len(orbit_views(2)) == 6 and len(orbit_views(180)) == 540  # the papers' 2-degree steps
     with pytest.raises(ParameterError):
         orbit_views(0)
 
