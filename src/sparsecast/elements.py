@@ -82,13 +82,14 @@ def _check_resample(resample) -> float:
     return r
 
 
-def _check_threshold(threshold) -> float:
+def check_unit(value, name: str) -> float:
+    """``value`` as a float in [0, 1], or a ParameterError naming ``name``."""
     try:
-        t = float(threshold)
+        t = float(value)
     except (TypeError, ValueError):
-        raise ParameterError(f"threshold: expected a normalised density in [0, 1], got {threshold!r}") from None
+        raise ParameterError(f"{name}: expected a number in [0, 1], got {value!r}") from None
     if not 0.0 <= t <= 1.0:
-        raise ParameterError(f"threshold: expected a normalised density in [0, 1], got {threshold!r}")
+        raise ParameterError(f"{name}: expected a number in [0, 1], got {value!r}")
     return t
 
 
@@ -157,7 +158,7 @@ def voxel_elements(volume: Volume, threshold: float = 0.1, resample: float = 1.0
     """
     if not isinstance(volume, Volume):
         raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
-    thr = _check_threshold(threshold)
+    thr = check_unit(threshold, "threshold")
     r = _check_resample(resample)
     v_lo, v_hi = (float(x) for x in volume.value_range)
     span = v_hi - v_lo if v_hi > v_lo else 1.0

@@ -121,6 +121,30 @@ def _partition(lo, hi, perm, b, e, axis, mid, use_le, lb, rb):
 
 
 @njit(cache=True)
+def _emit(node_i, node_f, node_box, node, parent, slot, kind, b, e, depth, p0, p1, cur):
+    """Write node ``node`` (children unset: -1) and link it as child ``slot`` of ``parent``."""
+    if parent >= 0:
+        node_i[parent, 1 + slot] = node
+    node_i[node, 0] = kind
+    node_i[node, 1] = -1
+    node_i[node, 2] = -1
+    node_i[node, 3] = b
+    node_i[node, 4] = e - b
+    node_i[node, 5] = depth
+    node_f[node, 0] = p0
+    node_f[node, 1] = p1
+    for a in range(6):
+        node_box[node, a] = cur[_T + a]
+
+
+@njit(cache=True, inline="always")
+def _cut_box(cur, axis, lo_p, hi_p):
+    """Apply a single child's interval to the traversal box T of the task."""
+    cur[_T + axis] = max(cur[_T + axis], lo_p)
+    cur[_T + 3 + axis] = min(cur[_T + 3 + axis], hi_p)
+
+
+@njit(cache=True)
 def build(lo, hi, variant, node_i, node_f, node_box, perm):
     """Build the intermediate BIH over element AABBs ``lo``/``hi`` (n, 3), in place.
 
@@ -192,20 +216,9 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
                     if g > gap:
                         gap = g
                         best = a
-                node = m
-                m += 1
-                if parent >= 0:
-                    node_i[parent, 1 + slot] = node
-                node_i[node, 3] = b
-                node_i[node, 4] = e - b
-                node_i[node, 5] = depth
-                node_box[node] = cur[_T:_T + 6]
                 if best < 0:
-                    node_i[node, 0] = LEAF
-                    node_i[node, 1] = -1
-                    node_i[node, 2] = -1
-                    node_f[node, 0] = 0.0
-                    node_f[node, 1] = 0.0
+                    _emit(node_i, node_f, node_box, m, parent, slot, LEAF, b, e, depth, 0.0, 0.0, cur)
+                    m += 1
                     break
                 a = best
                 lo_p = cur[_A + a]
@@ -216,13 +229,10 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
                         hi_p = math.inf
                     else:
                         lo_p = -math.inf
-                node_i[node, 0] = a
-                node_i[node, 2] = -1
-                node_f[node, 0] = lo_p
-                node_f[node, 1] = hi_p
-                cur[_T + a] = max(cur[_T + a], lo_p)
-                cur[_T + 3 + a] = min(cur[_T + 3 + a], hi_p)
-                parent = node
+                _emit(node_i, node_f, node_box, m, parent, slot, a, b, e, depth, lo_p, hi_p, cur)
+                _cut_box(cur, a, lo_p, hi_p)
+                parent = m
+                m += 1
                 slot = 0
                 depth += 1
                 continue
@@ -266,36 +276,17 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
                         lo_p = -math.inf
                         cut_lo = False
                 if cut_lo or cut_hi:
-                    node = m
+                    _emit(node_i, node_f, node_box, m, parent, slot, axis, b, e, depth, lo_p, hi_p, cur)
+                    _cut_box(cur, axis, lo_p, hi_p)
+                    parent = m
                     m += 1
-                    if parent >= 0:
-                        node_i[parent, 1 + slot] = node
-                    node_i[node, 0] = axis
-                    node_i[node, 2] = -1
-                    node_i[node, 3] = b
-                    node_i[node, 4] = e - b
-                    node_i[node, 5] = depth
-                    node_f[node, 0] = lo_p
-                    node_f[node, 1] = hi_p
-                    node_box[node] = cur[_T:_T + 6]
-                    cur[_T + axis] = max(cur[_T + axis], lo_p)
-                    cur[_T + 3 + axis] = min(cur[_T + 3 + axis], hi_p)
-                    parent = node
                     slot = 0
                     depth += 1
                 continue
             # Two children.
             node = m
             m += 1
-            if parent >= 0:
-                node_i[parent, 1 + slot] = node
-            node_i[node, 0] = axis
-            node_i[node, 3] = b
-            node_i[node, 4] = e - b
-            node_i[node, 5] = depth
-            node_f[node, 0] = lb[3 + axis]
-            node_f[node, 1] = rb[axis]
-            node_box[node] = cur[_T:_T + 6]
+            _emit(node_i, node_f, node_box, node, parent, slot, axis, b, e, depth, lb[3 + axis], rb[axis], cur)
             if hs + 2 > cap_t:
                 cap_t *= 2
                 tf = _grow2(tf, cap_t)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ._bih_kernels import LEAF, Q_NEG_INF, Q_POS_INF, dequantize_plane
@@ -63,6 +64,16 @@ def _cut(o, inv, flat, lo, hi, t0, t1):
     if inv > 0.0:
         return max(t0, (lo - o) * inv), min(t1, (hi - o) * inv)
     return max(t0, (hi - o) * inv), min(t1, (lo - o) * inv)
+
+
+@njit(cache=True)
+def traversal_arrays(depth):
+    """Per-tile scratch of a traversal of a tree of ``depth``: the stack
+    ``(st_node, st_t, st_box)`` (``depth + 2`` entries: one far child per level),
+    the leaf box and the per-ray ``ro``, ``rinv``, ``rflat`` (see :func:`set_ray`)."""
+    cap = depth + 2
+    return (np.empty(cap, np.int64), np.empty((cap, 2), np.float64), np.empty((cap, 6), np.float64),
+            np.empty(6, np.float64), np.empty(3, np.float64), np.empty(3, np.float64), np.empty(3, np.bool_))
 
 
 @njit(cache=True)

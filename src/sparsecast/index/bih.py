@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..elements import Elements, brick_elements, voxel_elements
+from ..elements import Elements, brick_elements, check_unit, voxel_elements
 from ..errors import ParameterError
 from . import _bih_kernels as K
 from .base import SpatialIndex
@@ -141,7 +141,7 @@ class BIHTree:
         at ``max_depth``, or where its elements fill at least ``min_fill`` of its box
         and their density's standard deviation is at most ``max_std``."""
         md = _check_depth(max_depth)
-        mf = _check_unit(min_fill, "min_fill")
+        mf = check_unit(min_fill, "min_fill")
         ms = float(max_std)
         if not ms >= 0.0:
             raise ParameterError(f"max_std: expected a non-negative standard deviation, got {max_std!r}")
@@ -311,16 +311,6 @@ class PackedBIH:
                 stack.append((int(c1), i, 1))
                 stack.append((int(c0), i, 0))
         return dict(kind=kind, child=child, q=q, density=dens, grad=grad, first=first, count=count)
-
-
-def _check_unit(x, name: str) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name}: expected a number in [0, 1], got {x!r}") from None
-    if not 0.0 <= v <= 1.0:
-        raise ParameterError(f"{name}: expected a number in [0, 1], got {x!r}")
-    return v
 
 
 def _check_depth(max_depth) -> int:

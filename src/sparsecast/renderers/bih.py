@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..index._bih_kernels import DENSITY_MAX, GRAD_MAX, GRAD_ZERO
-from ..index._bih_traversal import next_leaf, push_root, set_ray
+from ..index._bih_traversal import next_leaf, push_root, set_ray, traversal_arrays
 from ..kernels.camera import index_space_ray
 from ..kernels.march import march_interval
 from ..kernels.ray import clip_box, lattice_range
@@ -81,14 +81,7 @@ def bih_tile(
     nz, ny, nx = data.shape
     flat = data.reshape(nz * ny * nx)
     bx, by, bz = nx - 1.0, ny - 1.0, nz - 1.0
-    cap = depth + 2
-    st_node = np.empty(cap, np.int64)
-    st_t = np.empty((cap, 2), np.float64)
-    st_box = np.empty((cap, 6), np.float64)
-    leaf_box = np.empty(6, np.float64)
-    ro = np.empty(3, np.float64)
-    rinv = np.empty(3, np.float64)
-    rflat = np.empty(3, np.bool_)
+    st_node, st_t, st_box, leaf_box, ro, rinv, rflat = traversal_arrays(depth)
     has_nodes = nodes.shape[0] > 0
     x0, x1, y0, y1 = tile_bounds(tile, width, height)
     for py in range(y0, y1):

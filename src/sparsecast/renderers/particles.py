@@ -21,7 +21,7 @@ from numba import njit, prange
 from ..camera import Camera
 from ..elements import ParticleSet
 from ..errors import ParameterError
-from ..index._bih_traversal import next_leaf, push_root, set_ray
+from ..index._bih_traversal import next_leaf, push_root, set_ray, traversal_arrays
 from ..kernels.camera import primary_ray
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds, tile_count
@@ -58,18 +58,11 @@ def sphere_alpha(ox, oy, oz, dx, dy, dz, cx, cy, cz, r, kappa):
 @njit(cache=True, error_model="numpy")
 def particle_tile(tile, nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
                   radius_scale, grow, kappa, cam, width, height, ert, background, out_rgba, out_tests):
-    cap = depth + 2
-    st_node = np.empty(cap, np.int64)
-    st_t = np.empty((cap, 2), np.float64)
-    st_box = np.empty((cap, 6), np.float64)
-    leaf_box = np.empty(6, np.float64)
+    st_node, st_t, st_box, leaf_box, ro, rinv, rflat = traversal_arrays(depth)
     box = np.empty(6, np.float64)
     for a in range(3):
         box[a] = root_box[a] - grow
         box[3 + a] = root_box[3 + a] + grow
-    ro = np.empty(3, np.float64)
-    rinv = np.empty(3, np.float64)
-    rflat = np.empty(3, np.bool_)
     x0, x1, y0, y1 = tile_bounds(tile, width, height)
     for py in range(y0, y1):
         for px in range(x0, x1):
