@@ -215,3 +215,17 @@ def test_dense_tf_and_approximate_modes_on_fewer_views(tiny_config):
     approx = [r for r in renders if r["method"] == "bih:mode=single-sample"]
     assert approx and all(r["exact"] is False and 0 < r["psnr_vs_naive"] for r in approx)
     assert all("psnr_vs_naive" not in r for r in renders if r["method"] == "naive")
+
+
+def test_progress_counts_and_eta_and_logs_without_a_terminal():
+    from rich.console import Console
+    import io
+
+    buf = io.StringIO()
+    progress = Progress(10, 4, console=Console(file=buf, force_terminal=False), label="t")
+    assert progress.eta_s() is None  # nothing measured in this session yet
+    progress.say("first")
+    progress.advance(2)
+    assert progress.done_count == 6 and progress.eta_s() >= 0.0
+    assert "t: 4/10 cases, ETA --  first" in buf.getvalue()  # a plain line for a log file
+    progress.close()

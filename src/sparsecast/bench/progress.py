@@ -93,6 +93,11 @@ class ResultStore:
         self._remember(rec)
         self.extend_journal([rec])
 
+    def note(self, rec: dict[str, Any]) -> None:
+        """Keep ``rec`` for this run's output only (not journalled, no case key): e.g.
+        "peer skipped: not installed", which a later run should try again."""
+        self.records.append(rec)
+
     def add_many(self, recs: Iterable[dict[str, Any]]) -> None:
         """Keep several records and append them to the journal in one write (a section
         that must not be half-recorded)."""
@@ -126,6 +131,9 @@ class Progress:
     (resumed cases count as done but not towards the rate).
     """
 
+    #: seconds between plain progress lines when the console is not a terminal (a log file)
+    LOG_EVERY_S = 30.0
+
     def __init__(self, total: int, done: int = 0, *, console=None, label: str = "bench") -> None:
         self.total = max(total, done)
         self.done_count = done
@@ -134,7 +142,9 @@ class Progress:
         self._label = label
         self._message = ""
         self._status = None
-        if console is not None:
+        self._console = console
+        self._last_log = -float("inf")
+        if console is not None and console.is_terminal:
             self._status = console.status(self._line())
             self._status.start()
 
@@ -153,6 +163,9 @@ class Progress:
         self._message = message
         if self._status is not None:
             self._status.update(self._line())
+        elif self._console is not None and time.perf_counter() - self._last_log >= self.LOG_EVERY_S:
+            self._last_log = time.perf_counter()
+            self._console.print(self._line(), highlight=False)
 
     def advance(self, n: int = 1) -> None:
         self.done_count += n
