@@ -45,6 +45,8 @@ def test_suites_cover_the_issue():
     assert SUITES["quick"].method_specs() == sc.available_indices()
     assert paper.dense_tf and set(paper.peers) == {"vtk", "yt"} and set(paper.sections) == {"bih", "surface"}
     assert SUITES["quick"].dataset_names() == [n for n, d in sc.bench.DATASETS.items() if d.default]
+    sweep = get_suite("sweep").dataset_names()
+    assert len(sweep) == 10 and all(sc.bench.DATASETS[n].name == n for n in sweep)
     with pytest.raises(ParameterError, match="nope"):
         get_suite("nope")
 

@@ -7,7 +7,11 @@
   camera orbiting in fixed steps around the three axes, sparse and dense TF, the
   installed peers (VTK, yt) and the sections of the other modules (``bih``,
   ``surface``).
+- ``sweep``: the synthetic cluster sweeps (hybrid-grids paper, Fig. 5) at 256^3.
 - ``bih`` / ``surface``: one section on its own.
+
+Suites can share one output: records of every suite run into the same journal
+end up in the same report.
 """
 
 from __future__ import annotations
@@ -165,6 +169,9 @@ SUITES: dict[str, Suite] = {
             peers=("vtk", "yt"),
             sections=("bih", "surface"),
         ),
+        Suite("sweep", "the synthetic cluster sweeps of Fig. 5 at 256^3 (a: growing radius, b: more clusters)",
+              datasets=tuple(n for n in DATASETS if n.startswith(("fig5a-256-", "fig5b-256-"))),
+              dense_tf=False, repeat=1, warmup=0, irt=False),
         Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)",
               datasets=(), irt=False, sections=("bih",)),
         Suite("surface", "the RBVH section only (approximate surface ray casting)",
