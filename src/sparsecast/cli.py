@@ -207,7 +207,7 @@ def info(
 
 @app.command()
 def bench(
-    suite: Annotated[Optional[str], typer.Option(help="quick (the default run), paper (the papers' evaluation, ~30 min), bih or surface; resumable, with a Markdown report and figures.")] = None,
+    suite: Annotated[Optional[str], typer.Option(help="quick (the default run), paper (the papers' evaluation, ~30 min), sweep (Fig. 5 clusters), bih or surface; resumable, with a Markdown report and figures.")] = None,
     dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's.")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[Optional[bool], typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space (default: yes).")] = None,
