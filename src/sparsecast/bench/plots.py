@@ -1,6 +1,6 @@
 """Figures in the style of the papers, drawn from benchmark records (matplotlib, PNG).
 
-All figures use one image size (the largest in the records) and the sparse TF.
+All figures use the sparse TF and, per dataset, its largest image size in the records.
 
 - ``frame_times.png``: frame ms per structure and dataset (median over views),
   log scale, with the naive marcher and each peer as lines (hybrid-grids paper, Fig. 3).
@@ -47,10 +47,12 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     rows = [r for r in render_rows(records) if r.tf == "default"]
-    if rows:
-        width = max((r.width or 0) for r in rows)
-        rows = [r for r in rows if (r.width or 0) == width]
-    size_note = f", {rows[0].size}" if rows and rows[0].width else ""
+    largest: dict[str, int] = {}
+    for r in rows:
+        largest[r.dataset] = max(largest.get(r.dataset, 0), r.width or 0)
+    rows = [r for r in rows if (r.width or 0) == largest[r.dataset]]
+    sizes = sorted({r.size for r in rows if r.width})
+    size_note = f", {' / '.join(sizes)}" if sizes else ""
     frame = {(r.dataset, r.method): r.ms for r in rows if not r.peer}
     peer_ms = {(r.dataset, r.method): r.ms for r in rows if r.peer}
     peers = sorted({m for _, m in peer_ms})
