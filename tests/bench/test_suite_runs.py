@@ -190,6 +190,9 @@ def test_peer_renders_the_same_case(peer, tiny_dataset, tmp_path):
         assert r["psnr_vs_naive"] > 30.0, r
     saved = sorted(p.name for p in (tmp_path / "img").iterdir())
     assert saved == sorted([f"tiny_default_24x16_az30_el20_{peer}.png", "tiny_default_24x16_az30_el20_sparsecast.png"])
+    from sparsecast.bench.plots import write_plots
+
+    assert "peer_images.png" in [p.name for p in write_plots(records, tmp_path / "figs")]
 
 
 def test_missing_peer_is_skipped_with_the_reason(tiny_dataset, monkeypatch):

@@ -8,6 +8,8 @@ All figures use the sparse TF and, per dataset, its largest image size in the re
   (construction next to rendering, k-d tree paper Table 1).
 - ``build_vs_render.png``: per volume size of the n-body family, rebuild ms stacked
   under frame ms for each structure (LBVH paper, Fig. 4), when present.
+- ``peer_images.png``: our image next to each peer's on the same case, with the
+  PSNR (a person's check that the cases match), when peers ran with ``--images``.
 - ``sweep_<family>.png``: speed-up over naive along a synthetic sweep
   (``fig5a-*``, ``fig5b-*`` datasets; hybrid-grids paper, Fig. 5), when present.
 """
@@ -18,6 +20,8 @@ import re
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ..io.atomic import atomic_path
 from .summary import build_ms, render_rows
@@ -128,6 +132,10 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
         written.append(_save(fig, out / "build_vs_render.png"))
         plt.close(fig)
 
+    path = _peer_images(records, out / "peer_images.png", plt)
+    if path is not None:
+        written.append(path)
+
     families: dict[str, dict[str, list[tuple[int, float]]]] = defaultdict(lambda: defaultdict(list))
     for (ds, m), ms in frame.items():
         match = _SWEEP.match(ds)
@@ -148,6 +156,48 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
         written.append(_save(fig, out / f"sweep_{fam}.png"))
         plt.close(fig)
     return written
+
+
+def _peer_images(records: list[dict[str, Any]], path: Path, plt) -> Path | None:
+    """Our image next to each peer's on the same case (sparse TF, smallest size, first
+    view), one row per dataset, titled with frame ms and the PSNR against ours."""
+    from PIL import Image as PILImage
+
+    shots = [r for r in records if r.get("phase") == "render" and r.get("image") and r.get("tf") == "default"
+             and Path(r["image"]).is_file()]
+    peers = sorted({r["method"] for r in shots if r.get("peer")})
+    if not peers:
+        return None
+    cases: dict[tuple, dict[str, dict[str, Any]]] = defaultdict(dict)
+    for r in shots:
+        cases[(r["dataset"], r["width"], r["height"], r["view"])][r["method"] if r.get("peer") else "ours"] = r
+    rows: dict[str, tuple] = {}
+    for (ds, w, h, view), shot in cases.items():
+        if "ours" in shot and len(shot) > 1 and (ds not in rows or w * h < rows[ds][1] * rows[ds][2]):
+            rows[ds] = (ds, w, h, view)
+    if not rows:
+        return None
+    columns = ["ours"] + peers
+    fig, axes = plt.subplots(len(rows), len(columns), figsize=(2.6 * len(columns), 2.8 * len(rows)), squeeze=False)
+    for ax_row, key in zip(axes, rows.values()):
+        shot = cases[key]
+        for ax, name in zip(ax_row, columns):
+            ax.set_axis_off()
+            if name not in shot:
+                continue
+            r = shot[name]
+            with PILImage.open(r["image"]) as im:
+                im.thumbnail((256, 256))
+                ax.imshow(np.asarray(im.convert("RGB")))
+            label = "sparsecast (naive)" if name == "ours" else name
+            note = f"{r['ms']:.0f} ms" if name == "ours" else f"{r['ms']:.0f} ms, {r.get('psnr_vs_naive', 0):.1f} dB"
+            ax.set_title(f"{key[0]} {key[1]}x{key[2]}\n{label}: {note}", fontsize=7)
+    fig.suptitle("The same case rendered by sparsecast and the peers (PSNR against ours)", fontsize=9)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=80, bbox_inches="tight")
+    plt.close(fig)
+    return path
 
 
 def _shared_legend(fig, axes) -> None:
