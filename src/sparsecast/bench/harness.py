@@ -240,7 +240,7 @@ class _Run:
             if DATASETS[name].available():
                 self.datasets.append(name)
             else:
-                self._skip(name, "dataset", "data not found (no shared data folder or file)")
+                self.skip(name, "dataset", "data not found (no shared data folder or file)")
         self.tf_names = ["default"] + (["dense"] if config.dense_tf else [])
         keys = self._plan()
         self.progress.total = len(keys)
@@ -253,10 +253,10 @@ class _Run:
         self.progress.advance()
         return rec
 
-    def _skip(self, what: str, kind: str, reason: str) -> None:
+    def skip(self, what: str, kind: str, reason: str) -> None:
         """A note in the results (not the journal: a later run retries it)."""
-        self.store.records.append({**_BLANK, "method": what, "phase": "skipped", "kind": kind,
-                                   "reason": reason, "machine": self.machine})
+        self.store.note({**_BLANK, "method": what, "phase": "skipped", "kind": kind,
+                         "reason": reason, "machine": self.machine})
         self.progress.say(f"skip {what}: {reason}")
 
     def _available_peers(self) -> list[tuple[str, Any]]:
@@ -265,9 +265,9 @@ class _Run:
             try:
                 out.append((name, load_peer(name)))
             except PeerUnavailable as exc:
-                self._skip(name, "peer", str(exc))
+                self.skip(name, "peer", str(exc))
             except Exception as exc:  # a broken install must not end a long run
-                self._skip(name, "peer", f"failed to load: {type(exc).__name__}: {exc}")
+                self.skip(name, "peer", f"failed to load: {type(exc).__name__}: {exc}")
         return out
 
     def _available_sections(self) -> list[str]:
@@ -276,53 +276,53 @@ class _Run:
             if name == "irt" or importlib.util.find_spec(f"{__package__}.{name}") is not None:
                 out.append(name)
             else:
-                self._skip(name, "section", f"module sparsecast.bench.{name} is not there yet")
+                self.skip(name, "section", f"module sparsecast.bench.{name} is not there yet")
         if self.cfg.irt and "irt" not in out:
             out.insert(0, "irt")
         return out
 
-    def _views(self, tf: str, peer: bool = False) -> list[tuple[float, float]]:
+    def views(self, tf: str, peer: bool = False) -> list[tuple[float, float]]:
         """The views rendered for TF ``tf`` (by our methods, or by the peers)."""
         views = self.cfg.views
         if tf == "dense" and self.cfg.dense_views is not None:
             views = views[: self.cfg.dense_views]
         return views[: self.cfg.peer_views] if peer else views
 
-    def _render_keys(self, ds: str, tf: str, method: str, peer: bool = False) -> list[dict[str, Any]]:
+    def render_keys(self, ds: str, tf: str, method: str, peer: bool = False) -> list[dict[str, Any]]:
         return [dict(dataset=ds, tf=tf, method=method, width=w, height=h, view=view_name(v), phase="render")
-                for w, h in self.cfg.sizes for v in self._views(tf, peer)]
+                for w, h in self.cfg.sizes for v in self.views(tf, peer)]
 
-    def _method_keys(self, ds: str, tf: str, spec: str) -> list[dict[str, Any]]:
+    def method_keys(self, ds: str, tf: str, spec: str) -> list[dict[str, Any]]:
         return ([dict(dataset=ds, tf=tf, method=spec, phase=p) for p in ("build_cold", "rebuild")]
-                + self._render_keys(ds, tf, spec))
+                + self.render_keys(ds, tf, spec))
 
-    def _tf_keys(self, ds: str, tf: str) -> list[dict[str, Any]]:
+    def tf_keys(self, ds: str, tf: str) -> list[dict[str, Any]]:
         keys = [dict(dataset=ds, tf=tf, phase="tf_classify")]
         for spec, _, _ in self.methods:
-            keys += self._method_keys(ds, tf, spec)
+            keys += self.method_keys(ds, tf, spec)
         for peer, _ in self.peers:
-            keys += self._render_keys(ds, tf, peer, peer=True)
+            keys += self.render_keys(ds, tf, peer, peer=True)
         return keys
 
-    def _dataset_keys(self, ds: str) -> list[dict[str, Any]]:
+    def dataset_keys(self, ds: str) -> list[dict[str, Any]]:
         keys = [dict(dataset=ds, phase=p) for p in ("load", "brick_stats")]
         for tf in self.tf_names:
-            keys += self._tf_keys(ds, tf)
+            keys += self.tf_keys(ds, tf)
         return keys
 
     def _plan(self) -> list[dict[str, Any]]:
-        keys = [k for ds in self.datasets for k in self._dataset_keys(ds)]
+        keys = [k for ds in self.datasets for k in self.dataset_keys(ds)]
         return keys + [dict(method=s, phase="section_done") for s in self.sections]
 
-    def _all_done(self, keys: Iterable[dict[str, Any]]) -> bool:
+    def all_done(self, keys: Iterable[dict[str, Any]]) -> bool:
         return all(self.store.done(**k) for k in keys)
 
     # -- the measurements ------------------------------------------------------
     def all(self) -> None:
-        if any(not self._all_done(self._dataset_keys(ds)) for ds in self.datasets):
+        if any(not self.all_done(self.dataset_keys(ds)) for ds in self.datasets):
             _warm_up_kernels([(name, opts) for _, name, opts in self.methods])
         for ds in self.datasets:
-            if self._all_done(self._dataset_keys(ds)):
+            if self.all_done(self.dataset_keys(ds)):
                 continue
             self.dataset(ds)
         for name in self.sections:
@@ -347,7 +347,7 @@ class _Run:
         if cfg.dense_tf:
             tfs["dense"] = dense_tf(vol)
         for tf_name, tf in tfs.items():
-            if not self._all_done(self._tf_keys(ds_name, tf_name)):
+            if not self.all_done(self.tf_keys(ds_name, tf_name)):
                 _TfCases(self, ds_name, vol, tf_name, tf).run()
 
     def section(self, name: str) -> None:
@@ -370,7 +370,7 @@ class _Run:
                 module.run(None, width=w, height=h, repeat=cfg.repeat, warmup=max(cfg.warmup, 1), record=record)
         except Exception as exc:  # one broken section must not end a long run
             last = traceback.extract_tb(exc.__traceback__)[-1]
-            self._skip(name, "section", f"failed: {type(exc).__name__}: {exc} ({Path(last.filename).name}:{last.lineno})")
+            self.skip(name, "section", f"failed: {type(exc).__name__}: {exc} ({Path(last.filename).name}:{last.lineno})")
             return
         self.store.add_many(recs + [{**_BLANK, "method": name, "phase": "section_done", "machine": self.machine}])
         self.progress.advance()
@@ -407,10 +407,10 @@ class _TfCases:
             run.record(dataset=ds, tf=tf_name, phase="tf_classify", ms=ms, ms_runs=runs,
                        occupancy=float(np.mean(nonempty)), bricks=int(nonempty.size))
         for spec, method, opts in run.methods:
-            if not run._all_done(run._method_keys(ds, tf_name, spec)):
+            if not run.all_done(run.method_keys(ds, tf_name, spec)):
                 self.method(spec, method, opts)
         for peer, module in run.peers:
-            if not run._all_done(run._render_keys(ds, tf_name, peer, peer=True)):
+            if not run.all_done(run.render_keys(ds, tf_name, peer, peer=True)):
                 self.peer(peer, module)
 
     def method(self, spec: str, method: str, opts: dict[str, Any]) -> None:
@@ -430,7 +430,7 @@ class _TfCases:
         else:
             index = build_index(vol, tf, method, **opts)
         for w, h in cfg.sizes:
-            for i, view in enumerate(run._views(tf_name)):
+            for i, view in enumerate(run.views(tf_name)):
                 name = view_name(view)
                 if store.done(dataset=ds, tf=tf_name, method=spec, width=w, height=h, view=name, phase="render"):
                     continue
@@ -457,10 +457,10 @@ class _TfCases:
         try:
             scene = module.Scene(self.vol, self.tf, self.dt)
         except Exception as exc:  # a peer that cannot take this volume is a note, not a crash
-            run._skip(peer, "peer", f"{ds}/{tf_name}: {type(exc).__name__}: {exc}")
+            run.skip(peer, "peer", f"{ds}/{tf_name}: {type(exc).__name__}: {exc}")
             return
         for w, h in cfg.sizes:
-            for i, view in enumerate(run._views(tf_name, peer=True)):
+            for i, view in enumerate(run.views(tf_name, peer=True)):
                 name = view_name(view)
                 if run.store.done(dataset=ds, tf=tf_name, method=peer, width=w, height=h, view=name, phase="render"):
                     continue
