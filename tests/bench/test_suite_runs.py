@@ -157,8 +157,14 @@ def test_sections_are_recorded_once_and_missing_ones_skipped(tiny_dataset, fake_
     skipped = [r for r in records if r["phase"] == "skipped"]
     assert [r["method"] for r in skipped] == ["notthere"] and "not there" in skipped[0]["reason"]
     # Resumed: the finished section is not run again.
-    run_benchmarks(cfg, store=ResultStore(tmp_path / "s.jsonl"))
+    resumed = ResultStore(tmp_path / "s.jsonl")
+    run_benchmarks(cfg, store=resumed)
     assert len(fake_section.calls) == 1
+    # Its records neither stand for the main suite's cases nor join its tables.
+    assert not resumed.done(dataset="mesh", method="rbvh", phase="render")
+    from sparsecast.bench.summary import render_rows
+
+    assert render_rows(records) == []
 
 
 def test_a_failing_section_is_noted_and_the_run_goes_on(tiny_dataset, fake_section):

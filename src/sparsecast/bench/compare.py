@@ -1,7 +1,7 @@
 """``sparsecast bench --compare old.json new.json``: per-case time ratios between two runs.
 
 Cases are matched on their key (dataset, tf, method, size, view, phase, plus the
-table size of TF-table records). The ratio is new ms / old ms: above 1 is slower.
+table size of TF-table records and the section a record comes from). The ratio is new ms / old ms: above 1 is slower.
 Timings on a shared machine are noisy (about +-20 %), so only ratios beyond a
 threshold are flagged.
 """
@@ -31,14 +31,14 @@ class CaseRatio:
         return self.new_ms / self.old_ms if self.old_ms > 0 else math.inf
 
     def label(self) -> str:
-        dataset, tf, method, width, height, view, phase, table = self.key
-        parts = [dataset, tf, method, phase, f"{width}x{height}" if width else None, view,
-                 f"{table} entries" if table else None]
+        dataset, tf, method, width, height, view, phase, table, section = self.key
+        parts = [f"[{section}]" if section and section != "irt" else None, dataset, tf, method, phase,
+                 f"{width}x{height}" if width else None, view, f"{table} entries" if table else None]
         return " ".join(str(p) for p in parts if p)
 
 
 def _key(r: dict[str, Any]) -> tuple[Any, ...]:
-    return case_key(r) + (r.get("table_size"),)
+    return case_key(r) + (r.get("table_size"), r.get("section"))
 
 
 def compare_records(old: list[dict[str, Any]], new: list[dict[str, Any]]) -> tuple[list[CaseRatio], int, int]:

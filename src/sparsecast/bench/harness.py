@@ -501,14 +501,15 @@ def _warm_up_kernels(methods: list[tuple[str, dict[str, Any]]]) -> None:
 
 
 def add_ratios(records: Iterable[Record]) -> None:
-    """Ratios between records of the same run, added in place to every render record.
+    """Ratios between records of the same run, added in place to every render record
+    outside the sections (which compute their own).
 
     ``speedup_vs_naive`` (naive ms / ms, same dataset, TF, size and view),
     ``msamples_per_s``, ``samples_vs_oracle`` (samples taken / samples in non-empty
     space: 1 is a perfect skipper) and, for peers, ``ratio_to_best`` (peer ms /
     ms of our fastest exact index on the same case: above 1 means we are faster).
     """
-    recs = [r for r in records if r.get("phase") == "render"]
+    recs = [r for r in records if r.get("phase") == "render" and not r.get("section")]
 
     def case(r: Record) -> tuple:
         return (r["dataset"], r["tf"], r["view"], r.get("width"), r.get("height"))

@@ -82,7 +82,8 @@ class ResultStore:
 
     def _remember(self, rec: dict[str, Any]) -> None:
         self.records.append(rec)
-        self._keys.add(case_key(rec))
+        if not rec.get("section"):  # a section is done by its marker, not by its records
+            self._keys.add(case_key(rec))
 
     def done(self, **fields: Any) -> bool:
         """Whether the case with these key fields is already recorded."""

@@ -63,7 +63,8 @@ def render_rows(records: list[Record]) -> list[RenderRow]:
     """One :class:`RenderRow` per (dataset, tf, method, size), in record order."""
     groups: dict[tuple, list[Record]] = defaultdict(list)
     for r in records:
-        if r.get("phase") == "render" and r.get("ms") is not None:
+        # Sections (bih, surface, ...) have tables of their own in the report.
+        if r.get("phase") == "render" and r.get("ms") is not None and not r.get("section"):
             groups[(r["dataset"], r.get("tf"), r["method"], r.get("width"), r.get("height"))].append(r)
     rows = []
     for (ds, tf, method, w, h), recs in groups.items():
@@ -93,4 +94,4 @@ def best_exact(rows: list[RenderRow], dataset: str, tf: str, width: int, height:
 def build_ms(records: list[Record]) -> dict[tuple[str, str, str, str], Record]:
     """(dataset, tf, method, phase) -> the ``build_cold`` / ``rebuild`` record."""
     return {(r["dataset"], r.get("tf"), r["method"], r["phase"]): r for r in records
-            if r.get("phase") in ("build_cold", "rebuild")}
+            if r.get("phase") in ("build_cold", "rebuild") and not r.get("section")}
