@@ -29,10 +29,23 @@ def _to_tile(P, x, y, z):
 @njit(cache=True, parallel=True)
 def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris, faces, vnormals,
                         depth, normal):
-    """Depth (max height) and interpolated vertex normal of each tile's triangles."""
+    """Depth (max height) and interpolated vertex normal of each tile's triangles.
+
+    Rasterization is conservative: a texel is also written when its centre lies
+    outside a triangle but the triangle overlaps the 2 x 2 texel square around it
+    (the union of the four bilinear cells that share the texel), with the
+    triangle's plane extrapolated to the texel centre. Then every point of every
+    triangle falls in a cell whose four corners are valid, so a tile covers its
+    triangles completely and tiles that share an edge overlap across it: no
+    cracks, and the extrapolated rim (under one texel) is the tile's safety
+    border. Texels with their centre inside some triangle always win over
+    extrapolated ones; among extrapolations the least-outside triangle wins.
+    """
     for k in prange(tile_proj.shape[0]):
         P = tile_proj[k]
         x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        # > 0 inside some triangle; <= 0: how far outside the writer's triangle was
+        score = np.full((r, r), -np.inf)
         for q in range(tile_start[k], tile_start[k] + tile_count[k]):
             f = refs[q]
             s0, t0, h0 = _to_tile(P, tris[f, 0, 0], tris[f, 0, 1], tris[f, 0, 2])
@@ -40,26 +53,44 @@ def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris
             s2, t2, h2 = _to_tile(P, tris[f, 2, 0], tris[f, 2, 1], tris[f, 2, 2])
             area2 = (s1 - s0) * (t2 - t0) - (s2 - s0) * (t1 - t0)
             if abs(area2) < 1e-12:
-                continue  # edge-on in this projection: covers no texel centre
+                continue  # edge-on in this projection: covers no area
             inv = 1.0 / area2
-            i_lo = max(0, int(math.ceil(min(s0, s1, s2) - 1e-6)))
-            i_hi = min(r - 1, int(math.floor(max(s0, s1, s2) + 1e-6)))
-            j_lo = max(0, int(math.ceil(min(t0, t1, t2) - 1e-6)))
-            j_hi = min(r - 1, int(math.floor(max(t0, t1, t2) + 1e-6)))
+            # Barycentric gradients; b0 = 1 - b1 - b2.
+            g1s, g1t = (t2 - t0) * inv, -(s2 - s0) * inv
+            g2s, g2t = -(t1 - t0) * inv, (s1 - s0) * inv
+            r0 = abs(g1s + g2s) + abs(g1t + g2t)  # reach of each b over +-1 texel
+            r1 = abs(g1s) + abs(g1t)
+            r2 = abs(g2s) + abs(g2t)
+            i_lo = max(0, int(math.floor(min(s0, s1, s2))))
+            i_hi = min(r - 1, int(math.ceil(max(s0, s1, s2))))
+            j_lo = max(0, int(math.floor(min(t0, t1, t2))))
+            j_hi = min(r - 1, int(math.ceil(max(t0, t1, t2))))
             v0, v1, v2 = faces[f, 0], faces[f, 1], faces[f, 2]
             for j in range(j_lo, j_hi + 1):
                 for i in range(i_lo, i_hi + 1):
                     b1 = ((i - s0) * (t2 - t0) - (s2 - s0) * (j - t0)) * inv
                     b2 = ((s1 - s0) * (j - t0) - (i - s0) * (t1 - t0)) * inv
                     b0 = 1.0 - b1 - b2
-                    if b0 < -EDGE_EPS or b1 < -EDGE_EPS or b2 < -EDGE_EPS:
-                        continue
+                    m = min(b0, b1, b2)
                     h = b0 * h0 + b1 * h1 + b2 * h2
-                    if h > depth[y0 + j, x0 + i]:
-                        depth[y0 + j, x0 + i] = h
-                        for c in range(3):
-                            normal[y0 + j, x0 + i, c] = (b0 * vnormals[v0, c] + b1 * vnormals[v1, c]
-                                                         + b2 * vnormals[v2, c])
+                    if m >= -EDGE_EPS:
+                        if score[j, i] > 0.0 and h <= depth[y0 + j, x0 + i]:
+                            continue
+                        score[j, i] = 1.0
+                    else:
+                        # Separating-axis test of the triangle against the open
+                        # square of half-width 1 around the texel.
+                        if b0 + r0 <= 0.0 or b1 + r1 <= 0.0 or b2 + r2 <= 0.0 or score[j, i] >= m:
+                            continue
+                        score[j, i] = m
+                        # Normal from the nearest point's barycentrics.
+                        b0, b1, b2 = max(b0, 0.0), max(b1, 0.0), max(b2, 0.0)
+                        sb = b0 + b1 + b2
+                        b0, b1, b2 = b0 / sb, b1 / sb, b2 / sb
+                    depth[y0 + j, x0 + i] = h
+                    for c in range(3):
+                        normal[y0 + j, x0 + i, c] = (b0 * vnormals[v0, c] + b1 * vnormals[v1, c]
+                                                     + b2 * vnormals[v2, c])
 
 
 @njit(cache=True, parallel=True)
@@ -103,16 +134,19 @@ def splat_points(tile_proj, tile_rect, tile_steps, tile_start, tile_count, refs,
 
 
 @njit(cache=True, parallel=True)
-def dilate(tile_rect, depth, normal, passes):
+def dilate(tile_rect, tile_steps, depth, normal, passes, max_slope):
     """Grow every tile's surface by ``passes`` texels into empty texels.
 
     A new depth extrapolates the neighbour's with its gradient (``2 h1 - h2``
-    along each direction that has two valid texels, else ``h1``), averaged over
-    directions; the normal is the neighbours' mean. The border keeps adjacent
-    tiles overlapping, so rays through a seam find a surface (no cracks).
+    along each direction that has two valid texels and a slope of at most
+    ``max_slope``, else ``h1``: a cliff, such as a crease seen edge-on, would
+    shoot the border far out), averaged over directions; the normal is the
+    neighbours' mean. The border keeps adjacent tiles overlapping, so rays
+    through a seam find a surface (no cracks).
     """
     for k in prange(tile_rect.shape[0]):
         x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        step = min(tile_steps[k, 0], tile_steps[k, 1])
         for _ in range(passes):
             d_old = depth[y0:y0 + r, x0:x0 + r].copy()
             for j in range(r):
@@ -122,13 +156,17 @@ def dilate(tile_rect, depth, normal, passes):
                     acc = 0.0
                     cnt = 0
                     nx = ny = nz = 0.0
-                    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                    # Eight neighbours: with four, the diagonal texel at a convex
+                    # corner of the covered region stays empty and its cells leave
+                    # a pinhole where three tiles meet.
+                    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
                         i1, j1 = i + di, j + dj
                         if i1 < 0 or i1 >= r or j1 < 0 or j1 >= r or d_old[j1, i1] < EMPTY_TEST:
                             continue
                         h1 = d_old[j1, i1]
                         i2, j2 = i1 + di, j1 + dj
-                        if 0 <= i2 < r and 0 <= j2 < r and d_old[j2, i2] > EMPTY_TEST:
+                        if (0 <= i2 < r and 0 <= j2 < r and d_old[j2, i2] > EMPTY_TEST
+                                and abs(h1 - d_old[j2, i2]) <= max_slope * step):
                             acc += 2.0 * h1 - d_old[j2, i2]
                         else:
                             acc += h1

@@ -7,10 +7,7 @@ split-or-rasterize decision (NumPy, in :mod:`.rbvh`), a split plane per node
 level's array (:func:`partition_counts` sizes it, :func:`partition_write` fills
 it), duplicating primitives near the split plane.
 
-References of node ``i`` are ``refs[start[i] : start[i] + count[i]]``; ``own``
-flags the references a node owns (its centroid side of every split above it)
-as opposed to copies from the overlap band, so that tile resolutions follow the
-owned area and duplication does not inflate the atlas.
+References of node ``i`` are ``refs[start[i] : start[i] + count[i]]``.
 """
 
 from __future__ import annotations
@@ -24,8 +21,8 @@ from numba import njit, prange
 S_AREA, S_NX, S_NY, S_NZ = 0, 1, 2, 3
 S_LO, S_HI = 4, 7  # primitive-box bounds (3 each)
 S_CLO, S_CHI = 10, 13  # centroid bounds (3 each)
-S_MINCOS, S_CURVY, S_COMP_LO, S_COMP_HI, S_COMP_2, S_OWN_AREA, S_OUT_AREA = 16, 17, 18, 19, 20, 21, 22
-N_STATS = 23
+S_MINCOS, S_CURVY, S_COMP_LO, S_COMP_HI, S_COMP_2, S_OUT_AREA = 16, 17, 18, 19, 20, 21
+N_STATS = 22
 
 # Partition modes.
 SPLIT_DUP, SPLIT_PLANE, SPLIT_OBJECT, SPLIT_HALF = 0, 1, 2, 3
@@ -56,15 +53,14 @@ def face_components(faces, n_vertices):
 
 
 @njit(cache=True, parallel=True)
-def node_stats(refs, own, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcomp, cos_phi):
+def node_stats(refs, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcomp, cos_phi):
     """Per-node reductions: area, area-weighted normal sum, bounds, centroid bounds,
-    normal-cone cosine, curvy-corner sum, the component range, the owned area and
-    the area whose normals leave the cone of half-angle ``acos(cos_phi)``."""
+    normal-cone cosine, curvy-corner sum, the component range and the area whose normals leave the cone of half-angle ``acos(cos_phi)``."""
     n_nodes = start.shape[0]
     out = np.empty((n_nodes, N_STATS))
     for i in prange(n_nodes):
         s, e = start[i], start[i] + count[i]
-        a = nx = ny = nz = curvy = a_own = 0.0
+        a = nx = ny = nz = curvy = 0.0
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         clo = np.full(3, np.inf)
@@ -74,8 +70,6 @@ def node_stats(refs, own, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy,
             p = refs[r]
             w = parea[p]
             a += w
-            if own[r]:
-                a_own += w
             nx += w * pnorm[p, 0]
             ny += w * pnorm[p, 1]
             nz += w * pnorm[p, 2]
@@ -116,7 +110,6 @@ def node_stats(refs, own, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy,
         out[i, S_COMP_LO] = c_lo
         out[i, S_COMP_HI] = c_hi
         out[i, S_COMP_2] = two if c_hi != c_lo else 0.0
-        out[i, S_OWN_AREA] = a_own
         out[i, S_OUT_AREA] = out_area
     return out
 
@@ -199,15 +192,15 @@ def choose_splits(refs, start, count, stats, pmin, pmax, pcent, parea, use_sah, 
 
 @njit(cache=True, inline="always")
 def _sides(j, n, p, mode, axis, pos, band, comp_hi, pmin, pmax, pcent, pcomp):
-    """``(left, right, owner_is_left)`` for reference ``j`` (of ``n``) holding primitive ``p``."""
+    """``(left, right)`` membership of reference ``j`` (of ``n``) holding primitive ``p``."""
     if mode == SPLIT_HALF:
-        return j < n // 2, j >= n // 2, j < n // 2
+        return j < n // 2, j >= n // 2
     if mode == SPLIT_OBJECT:
-        return pcomp[p] != comp_hi, pcomp[p] == comp_hi, pcomp[p] != comp_hi
+        return pcomp[p] != comp_hi, pcomp[p] == comp_hi
     left = pcent[p, axis] < pos
     if mode == SPLIT_DUP and pmax[p, axis] >= pos - band and pmin[p, axis] <= pos + band:
-        return True, True, left
-    return left, not left, left
+        return True, True
+    return left, not left
 
 
 @njit(cache=True, parallel=True)
@@ -227,8 +220,8 @@ def partition_counts(refs, start, count, mode_in, axis, pos, band, comp_hi, pmin
         for attempt in range(3):
             a = b = 0
             for j in range(n):
-                l, r, _ = _sides(j, n, refs[s + j], mode[i], axis[i], pos[i], band[i], comp_hi[i],
-                                 pmin, pmax, pcent, pcomp)
+                l, r = _sides(j, n, refs[s + j], mode[i], axis[i], pos[i], band[i], comp_hi[i],
+                              pmin, pmax, pcent, pcomp)
                 a += l
                 b += r
             # A child holding every reference would repeat its parent forever.
@@ -241,23 +234,20 @@ def partition_counts(refs, start, count, mode_in, axis, pos, band, comp_hi, pmin
 
 
 @njit(cache=True, parallel=True)
-def partition_write(refs, own, start, count, mode, axis, pos, band, comp_hi, pmin, pmax, pcent, pcomp,
-                    out, out_own, left_start, right_start):
-    """Write every split node's references (and ownership) into its children's ranges of ``out``."""
+def partition_write(refs, start, count, mode, axis, pos, band, comp_hi, pmin, pmax, pcent, pcomp,
+                    out, left_start, right_start):
+    """Write every split node's references into its children's ranges of ``out``."""
     for i in prange(start.shape[0]):
         s, n = start[i], count[i]
         a, b = left_start[i], right_start[i]
         for j in range(n):
             p = refs[s + j]
-            l, r, owner_left = _sides(j, n, p, mode[i], axis[i], pos[i], band[i], comp_hi[i],
-                                      pmin, pmax, pcent, pcomp)
+            l, r = _sides(j, n, p, mode[i], axis[i], pos[i], band[i], comp_hi[i], pmin, pmax, pcent, pcomp)
             if l:
                 out[a] = p
-                out_own[a] = own[s + j] and owner_left
                 a += 1
             if r:
                 out[b] = p
-                out_own[b] = own[s + j] and not owner_left
                 b += 1
 
 

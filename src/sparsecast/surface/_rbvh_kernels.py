@@ -40,18 +40,21 @@ def _slab_tile(o, d, lo, hi, t0, t1):
 
 
 @njit(cache=True, inline="always")
-def _height(depth, x0, y0, r, s, t):
-    """Bilinear height at texel coordinates ``(s, t)``, or EMPTY when a corner is empty."""
-    i = min(max(int(s), 0), r - 2)
-    j = min(max(int(t), 0), r - 2)
+def _cell_valid(depth, x0, y0, i, j):
+    return (depth[y0 + j, x0 + i] > EMPTY_TEST and depth[y0 + j, x0 + i + 1] > EMPTY_TEST
+            and depth[y0 + j + 1, x0 + i] > EMPTY_TEST and depth[y0 + j + 1, x0 + i + 1] > EMPTY_TEST)
+
+
+@njit(cache=True, inline="always")
+def _cell_height(depth, x0, y0, i, j, s, t):
+    """Bilinear height of cell ``(i, j)`` at texel coordinates ``(s, t)`` (extrapolated
+    outside the cell, so a cell's entry and exit points use the same patch)."""
     fs = s - i
     ft = t - j
     h00 = depth[y0 + j, x0 + i]
     h10 = depth[y0 + j, x0 + i + 1]
     h01 = depth[y0 + j + 1, x0 + i]
     h11 = depth[y0 + j + 1, x0 + i + 1]
-    if h00 < EMPTY_TEST or h10 < EMPTY_TEST or h01 < EMPTY_TEST or h11 < EMPTY_TEST:
-        return EMPTY
     return (1.0 - ft) * ((1.0 - fs) * h00 + fs * h10) + ft * ((1.0 - fs) * h01 + fs * h11)
 
 
@@ -79,14 +82,26 @@ def tile_normal(normal, x0, y0, r, s, t):
     return 0.0, 0.0, 0.0
 
 
+@njit(cache=True, inline="always")
+def _next_border(c, o, d):
+    """Ray parameter where coordinate ``o + t d`` leaves cell ``[c, c+1]`` (inf if never)."""
+    if d > 0.0:
+        return (c + 1.0 - o) / d
+    if d < 0.0:
+        return (c - o) / d
+    return math.inf
+
+
 @njit(cache=True)
 def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_rect, depth):
     """First crossing of the ray with height-field tile ``k`` in ``[t_min, t_max]``.
 
-    Linear search one texel per step along the ray's footprint in the tile, then
-    regula falsi between the two samples that bracket a sign change of
-    ``ray height - surface height``. Either crossing direction counts (surfaces
-    are two-sided, as in the exact triangle test).
+    The linear search visits the cells of the tile under the ray in order (a 2-D
+    DDA, so no cell is skipped) and compares ray height and surface height where
+    the ray enters and leaves each valid cell; a sign change is refined by regula
+    falsi on that cell's bilinear patch. Either crossing direction counts
+    (surfaces are two-sided, as in the exact triangle test). Cells with an empty
+    corner hold no surface.
 
     Returns ``(t, s, u)``: the ray parameter (``inf`` on a miss) and the texel
     coordinates of the hit.
@@ -111,36 +126,39 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     ta, tb = _slab_tile(h0, dh, tile_h[k, 0], tile_h[k, 1], ta, tb)
     if ta > tb:
         return math.inf, 0.0, 0.0
-    # One sample per texel crossed (at least the two ends).
-    steps = int(math.ceil(max(abs(ds), abs(du)) * (tb - ta))) + 1
-    dt = (tb - ta) / steps
-    t_prev = ta
-    h = _height(depth, x0, y0, r, s0 + ta * ds, u0 + ta * du)
-    f_prev = h0 + ta * dh - h
-    valid_prev = h > EMPTY_TEST
-    for i in range(1, steps + 1):
-        t = ta + i * dt
-        h = _height(depth, x0, y0, r, s0 + t * ds, u0 + t * du)
-        valid = h > EMPTY_TEST
-        f = h0 + t * dh - h
-        if valid and valid_prev and (f <= 0.0) != (f_prev <= 0.0):
-            # Regula falsi inside [t_prev, t].
-            a, fa, b, fb = t_prev, f_prev, t, f
-            for _ in range(SECANT_STEPS):
-                if fa == fb:
-                    break
-                c = a - fa * (b - a) / (fb - fa)
-                hc = _height(depth, x0, y0, r, s0 + c * ds, u0 + c * du)
-                if hc < EMPTY_TEST:
-                    break
-                fc = h0 + c * dh - hc
-                if (fc <= 0.0) == (fa <= 0.0):
-                    a, fa = c, fc
-                else:
-                    b, fb = c, fc
-            th = a - fa * (b - a) / (fb - fa) if fa != fb else a
-            return th, s0 + th * ds, u0 + th * du
-        t_prev = t
-        f_prev = f
-        valid_prev = valid
+    # The cell holding the segment's midpoint-side start (clamped: the entry
+    # point may sit exactly on the far border).
+    t = ta
+    i = min(max(int(math.floor(s0 + t * ds)), 0), r - 2)
+    j = min(max(int(math.floor(u0 + t * du)), 0), r - 2)
+    for _ in range(2 * r + 2):
+        t_exit = min(_next_border(i, s0, ds), _next_border(j, u0, du), tb)
+        if t_exit < t:
+            t_exit = t
+        if _cell_valid(depth, x0, y0, i, j):
+            fa = h0 + t * dh - _cell_height(depth, x0, y0, i, j, s0 + t * ds, u0 + t * du)
+            fb = h0 + t_exit * dh - _cell_height(depth, x0, y0, i, j, s0 + t_exit * ds, u0 + t_exit * du)
+            if (fa <= 0.0) != (fb <= 0.0):
+                a, b = t, t_exit
+                for _ in range(SECANT_STEPS):
+                    if fa == fb:
+                        break
+                    c = a - fa * (b - a) / (fb - fa)
+                    fc = h0 + c * dh - _cell_height(depth, x0, y0, i, j, s0 + c * ds, u0 + c * du)
+                    if (fc <= 0.0) == (fa <= 0.0):
+                        a, fa = c, fc
+                    else:
+                        b, fb = c, fc
+                th = a - fa * (b - a) / (fb - fa) if fa != fb else a
+                return th, s0 + th * ds, u0 + th * du
+        if t_exit >= tb:
+            break
+        # Step into the neighbour across the nearer border.
+        if _next_border(i, s0, ds) <= _next_border(j, u0, du):
+            i += 1 if ds > 0.0 else -1
+        else:
+            j += 1 if du > 0.0 else -1
+        if i < 0 or i > r - 2 or j < 0 or j > r - 2:
+            break
+        t = t_exit
     return math.inf, 0.0, 0.0

@@ -24,6 +24,8 @@ BORDER = 1
 #: smallest interior resolution: coarser tiles would make the dilated border as
 #: wide as the tile itself
 MIN_RES = 4
+#: steepest height gradient the dilation extrapolates (tan 65 deg, the widest cone)
+MAX_SLOPE = 2.2
 
 
 @dataclass(frozen=True)
@@ -150,10 +152,11 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     start = np.asarray(tile_start, np.int64)
     count = np.asarray(tile_count, np.int64)
     if tris is not None:
+        # Conservative: the extrapolated rim is the border (see rasterize_triangles).
         rasterize_triangles(proj, rect, start, count, refs, tris, faces, vnormals, depth, normal)
     else:
         splat_points(proj, rect, steps, start, count, refs, points, pnormals, radii, depth, normal)
-    dilate(rect, depth, normal, BORDER)
+        dilate(rect, steps, depth, normal, BORDER, MAX_SLOPE)
     pad = 0.01 * steps.max(axis=1)  # keep grazing hits at the extreme heights
     tile_h = tile_height_range(rect, depth, pad)
     # World box of a tile: its oriented box, cut down to the primitives' box grown

@@ -228,7 +228,6 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
 
     nodes = _Nodes(max(16, 2 * m // 64))
     refs = np.arange(m, dtype=np.int32)
-    own = np.ones(m, np.bool_)
     f_start = np.zeros(1, np.int64)
     f_count = np.full(1, m, np.int64)
     f_node = np.zeros(1, np.int32)
@@ -244,16 +243,14 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         depth += 1
         level_stats.append((len(f_start), int(f_count.sum())))
         tic = time.perf_counter()
-        st = K.node_stats(refs, own, f_start, f_count, prims.pmin, prims.pmax, prims.pcent, prims.pnorm,
+        st = K.node_stats(refs, f_start, f_count, prims.pmin, prims.pmax, prims.pcent, prims.pnorm,
                           prims.parea, prims.pcurvy, prims.pcomp, cos_phi)
         phases["reduce"] += time.perf_counter() - tic
         tic = time.perf_counter()
         area = st[:, K.S_AREA]
         a_perp = np.linalg.norm(st[:, K.S_NX:K.S_NZ + 1], axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            # R = sqrt(rho A^2 / A_perp), with A counting the owned area once so
-            # that band copies do not inflate the texel budget.
-            res = np.sqrt(rho_w * st[:, K.S_OWN_AREA] * area / a_perp)
+            res = np.sqrt(rho_w * area**2 / a_perp)
             flat = a_perp / area > q.alpha
             in_cone = st[:, K.S_OUT_AREA] <= cone_tolerance * area
         tile_ok = ~f_tri & in_cone & flat & (res <= r_cap) & (area > 0)
@@ -300,7 +297,7 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         s_st = np.ascontiguousarray(st[idx])
         axis, pos = K.choose_splits(refs, s_start, s_count, s_st, prims.pmin, prims.pmax, prims.pcent,
                                     prims.parea, split == "sah", bins)
-        mode = np.where(s_tri, K.SPLIT_PLANE, K.SPLIT_DUP).astype(np.int32)
+        mode = np.where(s_tri | (overlap == 0.0), K.SPLIT_PLANE, K.SPLIT_DUP).astype(np.int32)
         mode[(s_st[:, K.S_COMP_2] == 1.0) & ~s_tri] = K.SPLIT_OBJECT
         extent = s_st[np.arange(len(idx)), K.S_HI + axis] - s_st[np.arange(len(idx)), K.S_LO + axis]
         band = overlap * extent
@@ -312,14 +309,13 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         sizes = np.stack([nl, nr], 1).ravel()
         child_start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
         new_refs = np.empty(int(sizes.sum()), np.int32)
-        new_own = np.empty(len(new_refs), np.bool_)
-        K.partition_write(refs, own, s_start, s_count, mode, axis, pos, band, comp_hi, prims.pmin, prims.pmax,
-                          prims.pcent, prims.pcomp, new_refs, new_own, child_start[0::2].copy(),
+        K.partition_write(refs, s_start, s_count, mode, axis, pos, band, comp_hi, prims.pmin, prims.pmax,
+                          prims.pcent, prims.pcomp, new_refs, child_start[0::2].copy(),
                           child_start[1::2].copy())
         first = nodes.alloc_pairs(len(idx))
         nodes.child[f_node[idx]] = first
         nodes.count[f_node[idx]] = 0
-        refs, own = new_refs, new_own
+        refs = new_refs
         f_start = child_start
         f_count = sizes
         f_node = np.stack([first, first + 1], 1).ravel().astype(np.int32)
