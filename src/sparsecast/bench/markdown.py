@@ -89,14 +89,17 @@ def markdown_report(
         f"({m.get('numba_threads', '?')} Numba threads), Python {m.get('python', '?')}, "
         f"NumPy {m.get('numpy', '?')}, Numba {m.get('numba', '?')}, {m.get('platform', '?')}.",
         "",
-        f"Image sizes {', '.join(sizes) or '–'}; frame time = median over {views} orbit views; "
-        "every ratio compares two measurements of this same run (timings on a shared "
-        "machine vary by about ±20 % between runs). *Work efficiency* = samples taken / "
-        "samples in non-empty space (the oracle; 1.0 is a perfect skipper). "
-        "*Rebuild* = building the index again after a TF change (per-volume brick "
-        "statistics reused).",
-        "",
     ]
+    if rows:
+        out += [
+            f"Image sizes {', '.join(sizes)}; frame time = median over up to {views} orbit views; "
+            "every ratio compares two measurements of this same run (timings on a shared "
+            "machine vary by about ±20 % between runs). *Work efficiency* = samples taken / "
+            "samples in non-empty space (the oracle; 1.0 is a perfect skipper). "
+            "*Rebuild* = building the index again after a TF change (per-volume brick "
+            "statistics reused).",
+            "",
+        ]
     out += _summary(rows, builds, records)
     out += _per_dataset(rows, builds)
     out += _peers(rows, records, rel)
@@ -217,21 +220,27 @@ def _approximate(rows: list[RenderRow]) -> list[str]:
 
 
 def _sections(records: list[Record]) -> list[str]:
+    """One table per section and phase, with the columns those records fill."""
     by_section: dict[str, list[Record]] = defaultdict(list)
     for r in records:
-        if r.get("section") and r.get("phase") != "section_done":
+        if r.get("section") and r.get("phase") not in ("section_done", "skipped"):
             by_section[r["section"]].append(r)
     out = []
     titles = {"irt": "Transfer-function range queries (iterative range tree vs prefix count)",
               "bih": "Bounding interval hierarchy", "surface": "Surfaces: rasterized BVH"}
     for name, recs in by_section.items():
-        extra = list(dict.fromkeys(k for r in recs for k, v in r.items()
-                                   if v is not None and k not in _NOT_EXTRA and k not in
-                                   ("dataset", "method", "phase", "ms")))
-        header = ["dataset", "method", "phase", "ms"] + extra
-        table = [[str(r.get("dataset") or ""), str(r.get("method") or ""), str(r.get("phase") or ""),
-                  _ms(r.get("ms"))] + [_cell(r.get(k)) for k in extra] for r in recs]
-        out += [f"## {titles.get(name, name)}", ""] + _table(header, table, "lll" + "r" * (len(header) - 3)) + [""]
+        out += [f"## {titles.get(name, name)}", ""]
+        by_phase: dict[str, list[Record]] = defaultdict(list)
+        for r in recs:
+            by_phase[str(r.get("phase"))].append(r)
+        for phase, rows in by_phase.items():
+            extra = list(dict.fromkeys(k for r in rows for k, v in r.items()
+                                       if v is not None and k not in _NOT_EXTRA
+                                       and k not in ("dataset", "method", "phase", "ms")))
+            header = ["dataset", "method", "ms"] + extra
+            table = [[str(r.get("dataset") or ""), f"`{r.get('method') or ''}`", _ms(r.get("ms"))]
+                     + [_cell(r.get(k)) for k in extra] for r in rows]
+            out += [f"*{phase}*", ""] + _table(header, table, "ll" + "r" * (len(header) - 2)) + [""]
     return out
 
 
