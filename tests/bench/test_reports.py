@@ -156,3 +156,23 @@ def test_cli_suite_resumes_and_writes_report(monkeypatch, capsys, tmp_path, tiny
 def test_cli_bench_option_errors(monkeypatch, capsys, args, message):
     code, _, err = run_cli(monkeypatch, capsys, "bench", *args)
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_ctrl_c_writes_what_is_finished(monkeypatch, capsys, tmp_path, tiny_dataset):
+    from sparsecast.bench import progress as progress_module
+
+    advance = progress_module.Progress.advance
+
+    def interrupt_after_five(self, n=1):
+        advance(self, n)
+        if self._session_done >= 5:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(progress_module.Progress, "advance", interrupt_after_five)
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "-d", tiny_dataset, "-m", "naive", "--size", "8x8",
+                             "--repeat", "1", "--warmup", "0", "--json", str(tmp_path / "r.json"),
+                             "--report", str(tmp_path / "B.md"))
+    assert code == 130 and "interrupted: 5 of" in err and "run the same command again" in err
+    assert len(json.loads((tmp_path / "r.json").read_text())) == 5
+    assert len((tmp_path / "r.jsonl").read_text().splitlines()) == 5
+    assert (tmp_path / "B.md").exists()

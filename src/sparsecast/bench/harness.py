@@ -34,7 +34,8 @@ from .progress import Progress, ResultStore
 from .suites import Suite, view_name
 from .timing import median_ms
 
-__all__ = ["BenchConfig", "run_benchmarks", "machine_info", "parse_method", "dense_tf", "add_ratios"]
+__all__ = ["BenchConfig", "run_benchmarks", "finished_records", "machine_info", "parse_method", "dense_tf",
+           "add_ratios"]
 
 
 @dataclass
@@ -202,6 +203,11 @@ def run_benchmarks(
     store = store if store is not None else ResultStore()
     run = _Run(config, store, progress)
     run.all()
+    return finished_records(store)
+
+
+def finished_records(store: ResultStore) -> list[Record]:
+    """The records ``store`` holds so far, with their ratios (also after an interrupt)."""
     records = [r for r in store.records if r.get("phase") != "section_done"]  # journal bookkeeping
     add_ratios(records)
     return records
