@@ -236,7 +236,7 @@ def bench(
         _bench_compare(*compare)
         return
     from .bench import format_table, run_benchmarks, write_json
-    from .bench.harness import BenchConfig, parse_method
+    from .bench.harness import BenchConfig, finished_records, parse_method
     from .bench.progress import Progress, ResultStore
     from .bench.suites import get_suite, orbit_views
 
@@ -266,13 +266,13 @@ def bench(
     if store.resumed:
         _err.print(f"resuming: {store.resumed} records from {json_path.with_suffix('.jsonl')}")
     progress = Progress(0, console=_err, label=f"sparsecast bench --suite {plan.name}")
+    interrupted = False
     try:
         records = run_benchmarks(cfg, progress=progress, store=store)
     except KeyboardInterrupt:
-        progress.close()
-        _err.print(f"interrupted: {progress.done_count} of {progress.total} cases are kept in "
-                   f"{store.path}; run the same command again to resume")
-        raise
+        # Ctrl-C: the outputs below show the finished cases; the journal resumes the rest.
+        interrupted = True
+        records = finished_records(store)
     finally:
         progress.close()
     # A table this wide is unreadable folded at 80 columns when piped to a file.
@@ -292,6 +292,10 @@ def bench(
 
         text = markdown_report(records, suite=plan.name, figures=figures, relative_to=report.parent)
         _out.print(f"wrote {write_markdown(text, report)}")
+    if interrupted:
+        _err.print(f"interrupted: {progress.done_count} of {progress.total} cases are kept in "
+                   f"{store.path}; run the same command again to resume")
+        raise typer.Exit(130)
 
 
 def _none_list(values: Optional[list[str]]) -> Optional[list[str]]:
