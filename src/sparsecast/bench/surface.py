@@ -1,0 +1,233 @@
+"""Benchmark section ``surface``: the RBVH paper's Tables 1-4 on our meshes.
+
+Per mesh (the shared ``bunny`` and ``beast``, and ``bunny-1m``: the bunny
+midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
+in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
+
+- ``phase="load"``: reading (and generating) the mesh;
+- ``phase="build"`` (Tables 1-2): the exact BVH and the RBVH at Q0-Q4 (SAH
+  splits) plus Q2 with median splits: build ms, nodes, tiles, texels, bytes of
+  nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
+  triangles) from the same run;
+- ``phase="render"`` (Table 3, primary rays) and ``phase="render_diffuse"``
+  (Table 4, one cosine-distributed diffuse ray per primary hit, the same rays for
+  every method): ms, ``mrays_s``, ``speedup`` over the BVH in the same run; for
+  the RBVH also ``psnr`` of the shaded image against the BVH's, mean/max depth
+  error in % of the bounding-box diagonal, and the share of pixels whose hit/miss
+  differs;
+- the Embree peer through Open3D's ``RaycastingScene`` when it imports (a
+  ``phase="skipped"`` record with the reason otherwise).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from ..camera import Camera
+from ..io.meshes import load_mesh
+from ..surface import build_bvh, build_rbvh
+from ..surface._bvh_kernels import cast_rays
+from ..surface.index import SurfaceIndex
+from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
+from ..surface.render import cast_camera, shade
+from .datasets import find_shared_data
+from .timing import median_ms
+
+__all__ = ["run", "MESHES", "DEFAULT_DATASETS", "QUALITIES"]
+
+QUALITIES = ("Q0", "Q1", "Q2", "Q3", "Q4")
+VIEW = (30.0, 20.0)
+
+
+def _shared(file: str) -> Callable[[], TriangleMesh]:
+    def load() -> TriangleMesh:
+        root = find_shared_data()
+        if root is None or not (root / file).is_file():
+            raise FileNotFoundError(f"{file}: not in the shared data folder")
+        return z_up(load_mesh(root / file))
+
+    return load
+
+
+#: name -> (loader, needs shared data)
+MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
+    "bunny": (_shared("stanford_bunny.ply"), True),
+    "beast": (_shared("beast.ply"), True),
+    "bunny-1m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 2), True),
+    "bunny-4m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 3), True),
+    "sphere-1m": (lambda: icosphere(8), False),
+}
+DEFAULT_DATASETS = ("bunny", "beast", "bunny-1m")
+
+
+def _diffuse_rays(hits, cam: Camera, width: int, height: int, eps: float, seed: int = 7):
+    """One cosine-weighted hemisphere ray per primary hit, leaving the side the camera sees."""
+    _, d = cam.rays(width, height)
+    hit = np.isfinite(hits.t)
+    n = hits.normals[hit].astype(np.float64)
+    dv = d[hit]
+    n = np.where(np.sum(n * dv, axis=1, keepdims=True) > 0, -n, n)
+    p = cam.rays(width, height)[0][hit] + hits.t[hit][:, None] * dv
+    rng = np.random.default_rng(seed)
+    u1, u2 = rng.random(len(n)), rng.random(len(n))
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(n, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    dirs = (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - u1)[:, None] * n
+    return np.ascontiguousarray(p + eps * n), np.ascontiguousarray(dirs / np.linalg.norm(dirs, axis=1, keepdims=True))
+
+
+def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], None]:
+    n = len(o)
+    out = (np.empty(n), np.empty((n, 3), np.float32), np.empty(n, np.int32), np.empty(n, np.int32),
+           np.empty((n, 2), np.float32))
+    args = index.kernel_args()
+    return lambda: cast_rays(*args, o, d, 0.0, np.inf, index.depth + 2, *out)
+
+
+def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: int, warmup: int):
+    """Median kernel ms of the primary rays (output allocation excluded), the runs, the hits."""
+    cast_camera(index, cam, 8, 8)  # compile / load outside the timing
+    kernel_ms: list[float] = []
+
+    def once():
+        h = cast_camera(index, cam, width, height)
+        kernel_ms.append(h.ms)
+        return h
+
+    _, _, hits = median_ms(once, repeat, warmup)
+    runs = kernel_ms[warmup:]
+    return float(np.median(runs)), runs, hits
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a[..., :3].astype(np.float64) - b[..., :3]) ** 2))
+    return math.inf if mse == 0 else 10 * math.log10(1.0 / mse)
+
+
+def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, repeat: int, warmup: int,
+            record: Callable[..., None], dataset: str, ref_ms: tuple[float, float]) -> None:
+    try:
+        import open3d as o3d  # an optional peer, not a dependency
+    except Exception as exc:  # ImportError, or a missing system library behind it
+        record(dataset=dataset, method="embree", phase="skipped", ms=None,
+               reason=f"open3d does not import: {type(exc).__name__}: {exc}")
+        return
+    t0 = time.perf_counter()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)),
+                        o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    build_ms = (time.perf_counter() - t0) * 1e3
+    record(dataset=dataset, method="embree", phase="build", ms=build_ms, triangles=mesh.n_triangles)
+    o, d = cam.rays(width, height)
+    prim = o3d.core.Tensor(np.concatenate([o, d], -1).reshape(-1, 6).astype(np.float32))
+    sec = o3d.core.Tensor(np.concatenate(diffuse, -1).astype(np.float32))
+    for phase, rays, n, ref in (("render", prim, width * height, ref_ms[0]),
+                                ("render_diffuse", sec, len(diffuse[0]), ref_ms[1])):
+        ms, runs, _ = median_ms(lambda: scene.cast_rays(rays), repeat, warmup)
+        record(dataset=dataset, method="embree", phase=phase, ms=ms, ms_runs=runs, rays=n,
+               mrays_s=n / ms / 1e3, speedup=ref / ms, width=width, height=height)
+
+
+def run(datasets: list[str] | None, *, width: int, height: int, repeat: int, warmup: int,
+        record: Callable[..., None]) -> None:
+    """Measure every mesh in ``datasets`` (default :data:`DEFAULT_DATASETS`; ``sphere-1m``
+    replaces the shared meshes when there is no shared data)."""
+    if datasets is None:
+        shared = find_shared_data() is not None
+        datasets = list(DEFAULT_DATASETS) if shared else ["sphere-1m"]
+    for name in datasets:
+        if name not in MESHES:
+            raise ValueError(f"surface bench: unknown mesh {name!r}; expected one of {', '.join(MESHES)}")
+        loader, _ = MESHES[name]
+        try:
+            t0 = time.perf_counter()
+            mesh = loader()
+            load_ms = (time.perf_counter() - t0) * 1e3
+        except FileNotFoundError as exc:
+            record(dataset=name, method="mesh", phase="skipped", ms=None, reason=str(exc))
+            continue
+        record(dataset=name, method="mesh", phase="load", ms=load_ms, triangles=mesh.n_triangles)
+        _bench_mesh(name, mesh, width, height, repeat, warmup, record)
+
+
+def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: int, warmup: int,
+                record: Callable[..., None]) -> None:
+    cam = Camera.orbit(mesh, *VIEW)
+    diag = mesh.diagonal
+    builds = max(1, min(repeat, 3))  # builds of 1 M triangles take seconds: fewer runs
+    build_warm = min(warmup, 1)
+
+    def build_and_record(method: str, make: Callable[[], SurfaceIndex], **extra) -> SurfaceIndex:
+        ms, runs, index = median_ms(make, builds, build_warm)
+        s = index.stats()
+        record(dataset=name, method=method, phase="build", ms=ms, ms_runs=runs, bytes=s["bytes"],
+               nodes=s["nodes"], depth=s["depth"], tiles=s["tiles"], texels=s["texels"],
+               triangle_leaves=s["triangle_leaves"], tile_leaves=s["tile_leaves"],
+               bytes_nodes=s["bytes_nodes"], bytes_triangles=s["bytes_triangles"],
+               bytes_atlas=s["bytes_atlas"], bytes_shading=s["bytes_shading"],
+               phases={k: v for k, v in s.items() if k.startswith("phase_")}, triangles=mesh.n_triangles,
+               **extra)
+        return index
+
+    bvh = build_and_record("bvh", lambda: build_bvh(mesh))
+    bvh_bytes = bvh.stats()["bytes_nodes"] + bvh.stats()["bytes_triangles"]
+    indices: dict[str, SurfaceIndex] = {"bvh": bvh}
+    for q in QUALITIES:
+        idx = build_and_record(f"rbvh-{q}", lambda q=q: build_rbvh(mesh, q), quality=q, split="sah")
+        indices[f"rbvh-{q}"] = idx
+        _mem_ratio(idx, bvh_bytes, record, name, f"rbvh-{q}")
+    med = build_and_record("rbvh-Q2-median", lambda: build_rbvh(mesh, "Q2", split="median"),
+                           quality="Q2", split="median")
+    indices["rbvh-Q2-median"] = med
+    _mem_ratio(med, bvh_bytes, record, name, "rbvh-Q2-median")
+
+    # Primary rays: the exact image first (reference for PSNR, depth error, diffuse rays).
+    ref_ms, ref_runs, ref = _primary(bvh, cam, width, height, repeat, warmup)
+    dist = float(np.linalg.norm(cam.eye - mesh.center))
+    depth_range = (max(dist - diag / 2, 0.0), dist + diag / 2)
+    ref_img = shade(ref, cam, "shaded", depth_range)
+    diffuse = _diffuse_rays(ref, cam, width, height, eps=1e-4 * diag)
+    n_diffuse = len(diffuse[0])
+    cast_ref = _cast(bvh, *diffuse)
+    cast_ref()  # compile outside the timing
+    ref_d_ms, ref_d_runs, _ = median_ms(cast_ref, repeat, warmup)
+    rays = width * height
+    record(dataset=name, method="bvh", phase="render", ms=ref_ms, ms_runs=ref_runs, rays=rays,
+           hits=int(np.isfinite(ref.t).sum()), mrays_s=rays / ref_ms / 1e3, speedup=1.0,
+           width=width, height=height, view=list(VIEW))
+    record(dataset=name, method="bvh", phase="render_diffuse", ms=ref_d_ms, ms_runs=ref_d_runs, rays=n_diffuse,
+           mrays_s=n_diffuse / ref_d_ms / 1e3, speedup=1.0, width=width, height=height, view=list(VIEW))
+    both_ref = np.isfinite(ref.t)
+    for method, idx in indices.items():
+        if method == "bvh":
+            continue
+        ms, runs, hits = _primary(idx, cam, width, height, repeat, warmup)
+        img = shade(hits, cam, "shaded", depth_range)
+        both = both_ref & np.isfinite(hits.t)
+        err = np.abs(hits.t - ref.t)[both] / diag * 100.0
+        record(dataset=name, method=method, phase="render", ms=ms, ms_runs=runs, rays=rays,
+               hits=int(np.isfinite(hits.t).sum()), mrays_s=rays / ms / 1e3, speedup=ref_ms / ms,
+               psnr=_psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
+               depth_err_max_pct=float(err.max()) if err.size else None,
+               hit_mismatch_pct=float(np.mean(np.isfinite(hits.t) != both_ref) * 100.0),
+               width=width, height=height, view=list(VIEW))
+        cast_d = _cast(idx, *diffuse)
+        cast_d()
+        d_ms, d_runs, _ = median_ms(cast_d, repeat, warmup)
+        record(dataset=name, method=method, phase="render_diffuse", ms=d_ms, ms_runs=d_runs, rays=n_diffuse,
+               mrays_s=n_diffuse / d_ms / 1e3, speedup=ref_d_ms / d_ms, width=width, height=height,
+               view=list(VIEW))
+    _embree(mesh, cam, width, height, diffuse, repeat, warmup, record, name, (ref_ms, ref_d_ms))
+
+
+def _mem_ratio(idx: SurfaceIndex, bvh_bytes: int, record, name: str, method: str) -> None:
+    s = idx.stats()
+    record(dataset=name, method=method, phase="memory", ms=None, bytes=s["bytes"],
+           mem_ratio=s["bytes"] / bvh_bytes, atlas_ratio=s["bytes_atlas"] / bvh_bytes)
