@@ -42,3 +42,24 @@ def test_tile_frames_are_orthonormal_and_follow_the_normal(rng):
     np.testing.assert_allclose(np.einsum("tij,tkj->tik", f, f), np.broadcast_to(np.eye(3), (100, 3, 3)), atol=1e-12)
     np.testing.assert_allclose(f[:, 2], n / np.linalg.norm(n, axis=1, keepdims=True))
     np.testing.assert_allclose(np.linalg.det(f), 1.0)  # right-handed
+
+
+def test_atlas_as_surface_storage_round_trip(rng):
+    """Texels lie on the surface, and a layer written per texel reads back at hits."""
+    from sparsecast.surface import raycast
+    from sparsecast.surface.atlas import atlas_texels, read_layer
+    from sparsecast.surface.mesh import grid_plane
+
+    index = build_rbvh(grid_plane(32), "Q3")
+    pos, nrm, rc = atlas_texels(index)
+    inside = np.all((pos[:, :2] > 0) & (pos[:, :2] < 1), axis=1)
+    np.testing.assert_allclose(pos[inside, 2], 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.abs(nrm[:, 2]), 1.0, atol=1e-2)
+    # Store x + 2y per texel: a linear field, so bilinear reads are exact.
+    layer = np.zeros(index.atlas_depth.shape)
+    layer[rc[:, 0], rc[:, 1]] = pos[:, 0] + 2 * pos[:, 1]
+    target = np.c_[rng.uniform(0.05, 0.95, (300, 2)), np.zeros(300)]
+    hits = raycast(index, target + [0, 0, 1], np.tile([0.0, 0.0, -1.0], (300, 1)))
+    got = read_layer(index, layer, hits.tile, hits.uv)
+    np.testing.assert_allclose(got, target[:, 0] + 2 * target[:, 1], atol=1e-5)
+    assert np.isnan(read_layer(index, layer, np.array([-1]), np.zeros((1, 2))))[0]

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._atlas_kernels import dilate, rasterize_triangles, splat_points, tile_height_range
-from ._rbvh_kernels import EMPTY, NORMAL_SCALE
+from ._rbvh_kernels import EMPTY, EMPTY_TEST, NORMAL_SCALE
 
-__all__ = ["Atlas", "BORDER", "pack_tiles", "tile_frames", "build_atlas"]
+__all__ = ["Atlas", "BORDER", "pack_tiles", "tile_frames", "build_atlas", "atlas_texels", "read_layer"]
 
 #: dilated texels around the covered interior of every tile
 BORDER = 1
@@ -172,3 +172,51 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     boxes = np.stack([box_lo, box_hi], axis=1).astype(np.float32)
     nrm = np.clip(np.rint(normal * NORMAL_SCALE), -127, 127).astype(np.int8)
     return Atlas(proj.astype(np.float32), tile_h, rect, depth, nrm, boxes)
+
+
+# -- the atlas as surface storage -------------------------------------------------
+def atlas_texels(index) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World position, unit normal and atlas ``(row, col)`` of every valid texel.
+
+    The positions lie on the rasterized surface, so attributes computed there
+    (ambient occlusion, paint, irradiance) can be written into an extra layer of
+    the atlas's shape and read back at ray hits with :func:`read_layer`.
+    """
+    rows, cols, pos, nrm = [], [], [], []
+    for k, (x0, y0, r) in enumerate(index.tile_rect):
+        d = index.atlas_depth[y0:y0 + r, x0:x0 + r]
+        j, i = np.nonzero(d > EMPTY_TEST)
+        p = index.tile_proj[k].astype(np.float64)
+        u, v, w = p[3:6], p[6:9], p[9:12]
+        # U and V carry the inverse texel spacing: the world step along U is U / |U|^2.
+        world = p[:3] + i[:, None] * (u / (u @ u)) + j[:, None] * (v / (v @ v)) + d[j, i][:, None] * w
+        rows.append(y0 + j)
+        cols.append(x0 + i)
+        pos.append(world)
+        nrm.append(index.atlas_normal[y0 + j, x0 + i].astype(np.float64))
+    if not rows:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2), np.int64)
+    n = np.concatenate(nrm)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    return np.concatenate(pos), n, np.stack([np.concatenate(rows), np.concatenate(cols)], 1)
+
+
+def read_layer(index, layer: np.ndarray, tile: np.ndarray, uv: np.ndarray, default: float = np.nan) -> np.ndarray:
+    """Bilinear lookup of an atlas-shaped ``layer`` at tile hits (``Hits.tile``, ``Hits.uv``).
+
+    Hits that are not on a tile (misses, exact triangle leaves) get ``default``.
+    """
+    tile = np.asarray(tile)
+    out = np.full(tile.shape, default, dtype=np.float64)
+    on = tile >= 0
+    if not on.any():
+        return out
+    rect = index.tile_rect[tile[on]]
+    s, t = uv[on][:, 0].astype(np.float64), uv[on][:, 1].astype(np.float64)
+    i = np.clip(np.floor(s).astype(np.int64), 0, rect[:, 2] - 2)
+    j = np.clip(np.floor(t).astype(np.int64), 0, rect[:, 2] - 2)
+    fs, ft = s - i, t - j
+    x, y = rect[:, 0] + i, rect[:, 1] + j
+    out[on] = ((1 - ft) * ((1 - fs) * layer[y, x] + fs * layer[y, x + 1])
+               + ft * ((1 - fs) * layer[y + 1, x] + fs * layer[y + 1, x + 1]))
+    return out
