@@ -73,7 +73,7 @@ def test_markdown_report_names_best_index_and_peers(tmp_path):
     assert cells[4] == "`grid-pc`" and cells[5] == "10.0" and cells[6] == "100.0"
     assert cells[7] == "10.0×" and cells[8] == "3.00" and cells[9] == "2.00" and cells[11] == "4.0×"
     assert "25.0 %" in row and "test cpu" in text
-    assert "## Peers on the same cases" in text and "41.0 dB" in text
+    assert "## Peers on the same cases" in text and "41.0 dB" in text and "`d_vtk.png`" in text
     assert "## Approximate indices" in text and "33.0 dB" in text
     assert "yt is not installed" in text
     assert "![frame_times](figs/frame_times.png)" in text
@@ -135,6 +135,7 @@ def test_cli_suite_resumes_and_writes_report(monkeypatch, capsys, tmp_path, tiny
             "--json", str(tmp_path / "r.json"), "--report", str(tmp_path / "B.md"), "--plot", str(tmp_path / "f")]
     code, out, err = run_cli(monkeypatch, capsys, *args)
     assert code == 0, err
+    assert "best index per dataset" in out and "16x16" in out  # the console headline
     records = json.loads((tmp_path / "r.json").read_text())
     renders = [r for r in records if r["phase"] == "render"]
     assert len(renders) == 2 * 2 * 6  # methods x sizes x views (2 per axis)

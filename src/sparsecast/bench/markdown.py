@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..io.atomic import atomic_path
-from .summary import RenderRow, best_exact, build_ms, render_rows
+from .summary import SWEEP, RenderRow, best_exact, best_rows, build_ms, peer_ratio, render_rows
 
 __all__ = ["markdown_report", "write_markdown"]
 
@@ -100,8 +100,9 @@ def markdown_report(
             "statistics reused).",
             "",
         ]
-    out += _summary(rows, builds, records)
-    out += _per_dataset(rows, builds)
+    out += _summary(records)
+    out += _per_dataset([r for r in rows if not SWEEP.match(r.dataset)], builds)
+    out += _sweeps(rows, records)
     out += _peers(rows, records, rel)
     out += _approximate(rows)
     out += _sections(records)
@@ -111,46 +112,25 @@ def markdown_report(
     return "\n".join(out).rstrip() + "\n"
 
 
-def _summary(rows: list[RenderRow], builds: dict, records: list[Record]) -> list[str]:
-    peers = sorted({r.method for r in rows if r.peer})
-    occupancy = {(r["dataset"], r["tf"]): r.get("occupancy") for r in records if r.get("phase") == "tf_classify"}
-    dims = {r["dataset"]: r.get("dims") for r in records if r.get("phase") == "load"}
+def _summary(records: list[Record]) -> list[str]:
+    best, peers = best_rows(records)
+    best = [b for b in best if not SWEEP.match(b.dataset)]  # the sweeps have their own table
+    if not best:
+        return []
     header = ["dataset", "TF", "size", "non-empty bricks", "best index", "frame ms", "naive ms",
               "× naive", "work eff.", "rebuild ms", "index bytes"] + [f"× {p}" for p in peers]
     table = []
-    cases = sorted({(r.dataset, r.tf, r.width, r.height) for r in rows if not r.peer},
-                   key=lambda c: (c[0], c[1] != "default", c[2]))
-    for ds, tf, w, h in cases:
-        best = best_exact(rows, ds, tf, w, h)
-        if best is None:
-            continue
-        naive = next((r for r in rows if (r.dataset, r.tf, r.method, r.width, r.height) == (ds, tf, "naive", w, h)), None)
-        rebuild = builds.get((ds, tf, best.method, "rebuild"), {}).get("ms")
-        vs_peers = []
-        for p in peers:
-            peer = next((r for r in rows if (r.dataset, r.tf, r.method, r.width, r.height) == (ds, tf, p, w, h)), None)
-            # Same views only: peers render the first views of the suite.
-            vs_peers.append(_f(_peer_ratio(records, ds, tf, p, w, h), ".1f", "×") if peer else "–")
-        label = ds + (f" ({'×'.join(map(str, dims[ds]))})" if dims.get(ds) else "")
-        table.append([label, tf, f"{w}x{h}", _f(100 * occupancy[(ds, tf)] if occupancy.get((ds, tf)) is not None else None, ".1f", " %"),
-                      f"`{best.method}`", _ms(best.ms), _ms(naive.ms if naive else None),
-                      _f(best.speedup_vs_naive, ".1f", "×"), _f(best.work_efficiency, ".2f"), _ms(rebuild),
-                      _bytes(best.bytes)] + vs_peers)
-    if not table:
-        return []
+    for b in best:
+        label = b.dataset + (f" ({'×'.join(map(str, b.dims))})" if b.dims else "")
+        occupancy = None if b.occupancy is None else 100 * b.occupancy
+        table.append([label, b.tf, f"{b.width}x{b.height}", _f(occupancy, ".1f", " %"), f"`{b.best.method}`",
+                      _ms(b.best.ms), _ms(b.naive_ms), _f(b.best.speedup_vs_naive, ".1f", "×"),
+                      _f(b.best.work_efficiency, ".2f"), _ms(b.rebuild_ms), _bytes(b.best.bytes)]
+                     + [_f(b.vs_peers[p], ".1f", "×") for p in peers])
     return ["## Summary: best index per dataset", "",
             "Best = our fastest exact index; `× naive` = its speed-up over the naive marcher; "
             "`× vtk` / `× yt` = peer frame ms / our best frame ms on the same views (above 1: we are faster).",
             ""] + _table(header, table, "lllrlrrrrrr" + "r" * len(peers)) + [""]
-
-
-def _peer_ratio(records: list[Record], ds: str, tf: str, peer: str, w: int, h: int) -> float | None:
-    """Median over the peer's views of peer ms / our best ms on that view."""
-    vals = [r["ratio_to_best"] for r in records if r.get("phase") == "render" and r.get("method") == peer
-            and (r["dataset"], r.get("tf"), r.get("width"), r.get("height")) == (ds, tf, w, h)
-            and r.get("ratio_to_best")]
-    vals.sort()
-    return vals[len(vals) // 2] if vals else None
 
 
 def _per_dataset(rows: list[RenderRow], builds: dict) -> list[str]:
@@ -181,32 +161,50 @@ def _per_dataset(rows: list[RenderRow], builds: dict) -> list[str]:
     return out
 
 
+def _sweeps(rows: list[RenderRow], records: list[Record]) -> list[str]:
+    """Speed-up over naive along each synthetic sweep (the table behind Fig. 5)."""
+    sweep = [r for r in rows if SWEEP.match(r.dataset) and r.tf == "default" and not r.peer]
+    if not sweep:
+        return []
+    occupancy = {r["dataset"]: r.get("occupancy") for r in records
+                 if r.get("phase") == "tf_classify" and r.get("tf") == "default"}
+    methods = [m for m in dict.fromkeys(r.method for r in sweep) if m != "naive"]
+    table = []
+    for ds in dict.fromkeys(r.dataset for r in sweep):
+        mine = {r.method: r for r in sweep if r.dataset == ds}
+        naive = mine.get("naive")
+        occ = occupancy.get(ds)
+        table.append([ds, _f(None if occ is None else 100 * occ, ".1f", " %"), _ms(naive.ms if naive else None)]
+                     + [_f(mine[m].speedup_vs_naive, ".1f", "×") if m in mine else "–" for m in methods])
+    return ["## Cluster sweeps (Fig. 5)", "",
+            "Speed-up over naive (median over views) as clusters grow (`fig5a`, radius in % of the edge) "
+            "and multiply (`fig5b`, number of clusters).", ""] + _table(
+        ["dataset", "non-empty bricks", "naive ms"] + [f"`{m}`" for m in methods], table) + [""]
+
+
 def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
     peer_recs = [r for r in records if r.get("phase") == "render" and r.get("peer")]
     if not peer_recs:
         return []
-    ours_img = {(r["dataset"], r["tf"], r.get("width"), r.get("view")): r["image"] for r in records
-                if r.get("phase") == "render" and r.get("image") and not r.get("peer")}
     table = []
     for p in [r for r in rows if r.peer]:
         best = best_exact(rows, p.dataset, p.tf, p.width, p.height)
-        images = [r for r in peer_recs if (r["dataset"], r["tf"], r["method"], r["width"]) ==
-                  (p.dataset, p.tf, p.method, p.width) and r.get("image")]
-        pics = "–"
-        if images:
-            mine = ours_img.get((p.dataset, p.tf, p.width, images[0]["view"]))
-            pics = f"[{p.method}]({rel(images[0]['image'])})" + (f" / [ours]({rel(mine)})" if mine else "")
+        image = next((r["image"] for r in peer_recs if (r["dataset"], r["tf"], r["method"], r["width"]) ==
+                      (p.dataset, p.tf, p.method, p.width) and r.get("image")), None)
         table.append([p.dataset, p.tf, p.size, p.method, str(p.views), _ms(p.ms),
                       f"`{best.method}` {_ms(best.ms)}" if best else "–",
-                      _f(_peer_ratio(records, p.dataset, p.tf, p.method, p.width, p.height), ".1f", "×"),
-                      _f(p.psnr, ".1f", " dB"), pics])
+                      _f(peer_ratio(records, p.dataset, p.tf, p.method, p.width, p.height), ".1f", "×"),
+                      _f(p.psnr, ".1f", " dB"), f"`{Path(image).name}`" if image else "–"])
+    folders = sorted({rel(Path(r["image"]).parent) for r in records if r.get("image") and r.get("peer")})
+    where = (" The images (ours as `*_sparsecast.png`, rendered by the naive marcher) are in "
+             + ", ".join(f"`{f}/`" for f in folders) + ".") if folders else ""
     return ["## Peers on the same cases", "",
             "Same volume, image size, step, camera and TF table (opacity corrected to the step "
             "with the same unit distance). PSNR: the peer's image against our naive image — an "
             "honesty check that the cases match, not a claim of equality (VTK quantises "
-            "scalars to 15 bits; yt samples cell-centred data).", ""] + _table(
+            "scalars to 15 bits; yt samples cell-centred data per cell crossing)." + where, ""] + _table(
         ["dataset", "TF", "size", "peer", "views", "peer frame ms", "our best (ms)", "peer / our best",
-         "PSNR vs naive", "images"], table, "lllllrrrrl") + [""]
+         "PSNR vs naive", "image"], table, "lllllrrrrl") + [""]
 
 
 def _approximate(rows: list[RenderRow]) -> list[str]:

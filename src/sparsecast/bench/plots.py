@@ -16,7 +16,6 @@ All figures use the sparse TF and, per dataset, its largest image size in the re
 
 from __future__ import annotations
 
-import re
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -24,11 +23,10 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import atomic_path
-from .summary import build_ms, render_rows
+from .summary import SWEEP, build_ms, render_rows
 
 __all__ = ["write_plots"]
 
-_SWEEP = re.compile(r"^(fig5[ab]-\d+)-[rk](\d+)$")
 #: the n-body field at growing sizes (LBVH paper Fig. 4 style), smallest first
 _SCALE_FAMILY = ("demo-128", "demo", "demo-512")
 _PEER_COLORS = ("tab:green", "tab:purple", "tab:brown")
@@ -60,7 +58,7 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
     frame = {(r.dataset, r.method): r.ms for r in rows if not r.peer}
     peer_ms = {(r.dataset, r.method): r.ms for r in rows if r.peer}
     peers = sorted({m for _, m in peer_ms})
-    datasets = list(dict.fromkeys(d for d, _ in frame if not _SWEEP.match(d)))
+    datasets = list(dict.fromkeys(d for d, _ in frame if not SWEEP.match(d)))
     methods = list(dict.fromkeys(m for _, m in frame if m != "naive"))
     builds = build_ms(records)
 
@@ -138,7 +136,7 @@ def write_plots(records: list[dict[str, Any]], out_dir: str | Path) -> list[Path
 
     families: dict[str, dict[str, list[tuple[int, float]]]] = defaultdict(lambda: defaultdict(list))
     for (ds, m), ms in frame.items():
-        match = _SWEEP.match(ds)
+        match = SWEEP.match(ds)
         if match and m != "naive" and (ds, "naive") in frame:
             families[match.group(1)][m].append((int(match.group(2)), frame[(ds, "naive")] / ms))
     for fam, per_method in sorted(families.items()):

@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import FileFormatError
 from ..io.atomic import atomic_path
 
-__all__ = ["format_table", "write_json", "load_records"]
+__all__ = ["format_table", "format_summary", "write_json", "load_records"]
 
 
 def _fmt(v: Any, spec: str) -> str:
@@ -59,6 +59,25 @@ def format_table(records: list[dict[str, Any]]):
             _fmt(r.get("bytes"), ",d"),
             "; ".join(notes),
         )
+    return table
+
+
+def format_summary(records: list[dict[str, Any]]):
+    """A :class:`rich.table.Table` with the headline per (dataset, TF, size): the best
+    exact index, its speed-up over naive and each peer, work efficiency, rebuild ms."""
+    from rich.table import Table
+
+    from .summary import best_rows
+
+    rows, peers = best_rows(records)
+    table = Table(title="sparsecast bench: best index per dataset (details in the report / JSON)")
+    for col in ["dataset", "tf", "size", "best", "frame ms", "x naive", "samples / oracle", "rebuild ms",
+                *[f"x {p}" for p in peers]]:
+        table.add_column(col, justify="left" if col in ("dataset", "tf", "size", "best") else "right")
+    for b in rows:
+        table.add_row(b.dataset, b.tf, f"{b.width}x{b.height}", b.best.method, _fmt(b.best.ms, ".1f"),
+                      _fmt(b.best.speedup_vs_naive, ".1f"), _fmt(b.best.work_efficiency, ".2f"),
+                      _fmt(b.rebuild_ms, ".2f"), *[_fmt(b.vs_peers[p], ".1f") for p in peers])
     return table
 
 

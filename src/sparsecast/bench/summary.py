@@ -7,14 +7,18 @@ records of the same run.
 
 from __future__ import annotations
 
+import re
 import statistics
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["RenderRow", "render_rows", "best_exact", "build_ms"]
+__all__ = ["SWEEP", "RenderRow", "BestRow", "render_rows", "best_exact", "best_rows", "build_ms", "peer_ratio"]
 
 Record = dict[str, Any]
+
+#: names of the synthetic sweep datasets (hybrid-grids paper, Fig. 5): family, parameter
+SWEEP = re.compile(r"^(fig5[ab]-\d+)-[rk](\d+)$")
 
 
 @dataclass(frozen=True)
@@ -95,3 +99,64 @@ def build_ms(records: list[Record]) -> dict[tuple[str, str, str, str], Record]:
     """(dataset, tf, method, phase) -> the ``build_cold`` / ``rebuild`` record."""
     return {(r["dataset"], r.get("tf"), r["method"], r["phase"]): r for r in records
             if r.get("phase") in ("build_cold", "rebuild") and not r.get("section")}
+
+
+@dataclass(frozen=True)
+class BestRow:
+    """The headline of one (dataset, tf, image size): our best exact index against
+    naive and against each peer.
+
+    Attributes
+    ----------
+    best : RenderRow
+        Our fastest exact method (naive included).
+    rebuild_ms : float or None
+        What a TF edit costs that index (build with the volume's brick statistics cached).
+    vs_peers : dict
+        Peer name -> peer frame ms / our best frame ms on the peer's views (above 1:
+        we are faster); None where the peer did not run.
+    """
+
+    dataset: str
+    tf: str
+    width: int
+    height: int
+    dims: list[int] | None
+    occupancy: float | None
+    best: RenderRow
+    naive_ms: float | None
+    rebuild_ms: float | None
+    vs_peers: dict[str, float | None]
+
+
+def peer_ratio(records: list[Record], dataset: str, tf: str, peer: str, width: int, height: int) -> float | None:
+    """Median over the peer's views of its ``ratio_to_best`` (peer ms / our best ms on that view)."""
+    return _median([r.get("ratio_to_best") for r in records if r.get("phase") == "render"
+                    and r.get("method") == peer and not r.get("section")
+                    and (r["dataset"], r.get("tf"), r.get("width"), r.get("height")) == (dataset, tf, width, height)])
+
+
+def best_rows(records: list[Record]) -> tuple[list[BestRow], list[str]]:
+    """One :class:`BestRow` per (dataset, tf, size) with renders of ours, sparse TF
+    first; and the names of the peers in the records."""
+    rows = render_rows(records)
+    builds = build_ms(records)
+    peers = sorted({r.method for r in rows if r.peer})
+    occupancy = {(r["dataset"], r.get("tf")): r.get("occupancy") for r in records
+                 if r.get("phase") == "tf_classify" and not r.get("section")}
+    dims = {r["dataset"]: r.get("dims") for r in records if r.get("phase") == "load" and not r.get("section")}
+    naive = {(r.dataset, r.tf, r.width, r.height): r.ms for r in rows if r.method == "naive"}
+    cases = sorted({(r.dataset, r.tf, r.width, r.height) for r in rows if not r.peer},
+                   key=lambda c: (c[0], c[1] != "default", c[2] or 0))
+    out = []
+    for ds, tf, w, h in cases:
+        best = best_exact(rows, ds, tf, w, h)
+        if best is None:
+            continue
+        out.append(BestRow(
+            dataset=ds, tf=tf, width=w, height=h, dims=dims.get(ds), occupancy=occupancy.get((ds, tf)),
+            best=best, naive_ms=naive.get((ds, tf, w, h)),
+            rebuild_ms=builds.get((ds, tf, best.method, "rebuild"), {}).get("ms"),
+            vs_peers={p: peer_ratio(records, ds, tf, p, w, h) for p in peers},
+        ))
+    return out, peers
