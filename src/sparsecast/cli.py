@@ -236,6 +236,7 @@ def bench(
         _bench_compare(*compare)
         return
     from .bench import format_table, run_benchmarks, write_json
+    from .bench.report import format_summary
     from .bench.harness import BenchConfig, finished_records, parse_method
     from .bench.progress import Progress, ResultStore
     from .bench.suites import get_suite, orbit_views
@@ -277,7 +278,8 @@ def bench(
         progress.close()
     # A table this wide is unreadable folded at 80 columns when piped to a file.
     wide = _out if _out.is_terminal else Console(soft_wrap=True, width=200)
-    wide.print(format_table(records))
+    # A suite run has hundreds of records: its console shows the headline, the report the rest.
+    wide.print(format_summary(records) if suite else format_table(records))
     write_json(records, json_path)
     _out.print(f"wrote {len(records)} records to {json_path}")
     figures = []
