@@ -6,6 +6,9 @@ for like. Node layout (see :mod:`._bvh_build_kernels`): ``node_count > 0`` is a
 triangle leaf of ``node_count`` triangles from ``node_child``; ``node_count == 0``
 an inner node with children ``node_child`` and ``node_child + 1``;
 ``node_count == TILE_LEAF`` a tile leaf whose tile is ``node_child``.
+Leaf triangle ``k`` is ``tris[k]``, mesh face ``tri_face[k]``, with shading
+normals ``vnormals[faces[k]]`` (``faces`` is in leaf order, so an index stores
+normals for its own triangles only).
 """
 
 from __future__ import annotations
@@ -90,6 +93,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     best = t_max
     face = -1
+    best_k = -1
     tile = -1
     ha = hb = 0.0
     if ray_box(nb, 0, ox, oy, oz, ix, iy, iz, t_min, best) == math.inf:
@@ -119,7 +123,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
             for k in range(first, first + c):
                 t, u, v = intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, best)
                 if t < best:
-                    best, face, tile, ha, hb = t, tri_face[k], -1, u, v
+                    best, face, best_k, tile, ha, hb = t, tri_face[k], k, -1, u, v
         else:
             k = nchild[node]
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
@@ -139,7 +143,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     if face >= 0:
         w = 1.0 - ha - hb
-        f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
+        f0, f1, f2 = faces[best_k, 0], faces[best_k, 1], faces[best_k, 2]
         nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
         ny = w * vnormals[f0, 1] + ha * vnormals[f1, 1] + hb * vnormals[f2, 1]
         nz = w * vnormals[f0, 2] + ha * vnormals[f1, 2] + hb * vnormals[f2, 2]

@@ -51,7 +51,7 @@ def build_bvh(mesh: TriangleMesh, *, max_leaf: int = 4, bins: int = 16) -> Surfa
     index = SurfaceIndex(
         kind="bvh", source=mesh, node_bounds=nb, node_child=nchild, node_count=ncount,
         tris=np.ascontiguousarray(tris[order]), tri_face=order.astype(np.int32),
-        faces=mesh.faces, vnormals=mesh.vertex_normals.astype(np.float32),
+        faces=np.ascontiguousarray(mesh.faces[order]), vnormals=mesh.vertex_normals.astype(np.float32),
         depth=int(depth), **empty_atlas_arrays(),
         build={"build_ms": (time.perf_counter() - t0) * 1e3,
                "phase_prepare_ms": (t1 - t0) * 1e3, "phase_sah_ms": (t2 - t1) * 1e3,

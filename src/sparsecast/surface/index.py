@@ -44,7 +44,8 @@ class SurfaceIndex:
     tris : (k, 3, 3) float32
         Triangles of the triangle leaves in leaf order; ``tri_face`` maps them to
         mesh faces (for normals).
-    faces, vnormals : mesh faces (int32) and float32 vertex normals for shading.
+    faces, vnormals : (k, 3) int32 and float32 normals
+        Shading: leaf triangle ``k`` has corner normals ``vnormals[faces[k]]``.
     tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal
         Tile projections, height ranges, atlas rectangles, the depth layer and the
         int8 normal layer (see :mod:`._rbvh_kernels`).
@@ -98,8 +99,8 @@ class SurfaceIndex:
             "triangles": int(self.tris.nbytes + self.tri_face.nbytes),
             "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tile_proj.nbytes
                          + self.tile_h.nbytes + self.tile_rect.nbytes) if tiles else 0,
-            # Smooth shading of triangle hits reads the mesh's faces and vertex normals.
-            "shading": int(self.faces.nbytes + self.vnormals.nbytes) if len(self.tris) else 0,
+            # Smooth shading of triangle hits: corner indices and vertex normals.
+            "shading": int(self.faces.nbytes + self.vnormals.nbytes),
         }
 
     def stats(self) -> dict[str, Any]:

@@ -349,7 +349,10 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
     tri_ids = np.concatenate(tri_refs).astype(np.int32) if tri_refs else np.zeros(0, np.int32)
     if is_mesh:
         tris = np.ascontiguousarray(surface.triangles[tri_ids], dtype=np.float32)
-        faces, vnormals = surface.faces, surface.vertex_normals.astype(np.float32)
+        # Shading normals of the leaf triangles only, re-indexed (not the whole mesh's).
+        used, local = np.unique(surface.faces[tri_ids], return_inverse=True)
+        faces = local.reshape(-1, 3).astype(np.int32)
+        vnormals = surface.vertex_normals[used].astype(np.float32)
     else:
         tris = np.zeros((0, 3, 3), np.float32)
         faces, vnormals = np.zeros((0, 3), np.int32), np.zeros((0, 3), np.float32)
