@@ -190,7 +190,7 @@ def test_peer_renders_the_same_case(peer, tiny_dataset, tmp_path):
     peer_recs = [r for r in records if r["method"] == peer]
     assert [r["view"] for r in peer_recs] == ["az30_el20", "az90_el45"]  # the first peer_views views
     for r in peer_recs:
-        assert r["peer"] and r["ms"] > 0 and r["ratio_to_best"] > 0
+        assert r["peer"] and r["ms"] > 0 and r["ratio_to_best"] > 0 and r["cores_busy"] >= 0
         # The same volume, camera, step and TF: close to our image (a wrong axis order,
         # camera or opacity scale drops this below ~20 dB).
         assert r["psnr_vs_naive"] > 30.0, r

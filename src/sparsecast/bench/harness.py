@@ -472,10 +472,16 @@ class _TfCases:
                     continue
                 run.progress.say(f"{ds}/{tf_name}: {peer} {w}x{h} {name}")
                 cam = self.camera(view)
-                frames = [scene.render(cam, w, h) for _ in range(max(cfg.warmup, 1) + cfg.repeat)]
-                timed = [ms for _, ms in frames[max(cfg.warmup, 1):]]
+                for _ in range(max(cfg.warmup, 1)):  # the first frame also sets the peer up
+                    scene.render(cam, w, h)
+                cpu0, wall0 = time.process_time(), time.perf_counter()
+                frames = [scene.render(cam, w, h) for _ in range(cfg.repeat)]
+                # CPU time over wall time: how many cores the peer kept busy (all threads).
+                cores = (time.process_time() - cpu0) / max(time.perf_counter() - wall0, 1e-9)
+                timed = [ms for _, ms in frames]
                 rgba = frames[-1][0]
-                extra: dict[str, Any] = {"psnr_vs_naive": psnr(rgba, self.reference(w, h, view))}
+                extra: dict[str, Any] = {"psnr_vs_naive": psnr(rgba, self.reference(w, h, view)),
+                                         "cores_busy": round(cores, 2)}
                 if i == 0 and cfg.images_dir is not None:
                     path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, peer)
                     extra["image"] = str(save_png(rgba, path))

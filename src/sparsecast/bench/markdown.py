@@ -8,6 +8,7 @@ same run (timings on a shared machine vary by about +-20 % between runs).
 from __future__ import annotations
 
 import os
+import statistics
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -23,7 +24,7 @@ _NOT_EXTRA = {"machine", "ms_runs", "section", "index_stats"}
 
 
 def _f(v: Any, spec: str = ".1f", suffix: str = "") -> str:
-    if v is None:
+    if v is None or (isinstance(v, float) and v != v):  # None or NaN
         return "–"
     try:
         return format(v, spec) + suffix
@@ -191,7 +192,10 @@ def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
         best = best_exact(rows, p.dataset, p.tf, p.width, p.height)
         image = next((r["image"] for r in peer_recs if (r["dataset"], r["tf"], r["method"], r["width"]) ==
                       (p.dataset, p.tf, p.method, p.width) and r.get("image")), None)
-        table.append([p.dataset, p.tf, p.size, p.method, str(p.views), _ms(p.ms),
+        cores = statistics.median([r["cores_busy"] for r in peer_recs if r.get("cores_busy") is not None and
+                                   (r["dataset"], r["tf"], r["method"], r["width"]) == (p.dataset, p.tf, p.method, p.width)]
+                                  or [float("nan")])
+        table.append([p.dataset, p.tf, p.size, p.method, str(p.views), _ms(p.ms), _f(cores, ".1f"),
                       f"`{best.method}` {_ms(best.ms)}" if best else "–",
                       _f(peer_ratio(records, p.dataset, p.tf, p.method, p.width, p.height), ".1f", "×"),
                       _f(p.psnr, ".1f", " dB"), f"`{Path(image).name}`" if image else "–"])
@@ -202,9 +206,10 @@ def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
             "Same volume, image size, step, camera and TF table (opacity corrected to the step "
             "with the same unit distance). PSNR: the peer's image against our naive image — an "
             "honesty check that the cases match, not a claim of equality (VTK quantises "
-            "scalars to 15 bits; yt samples cell-centred data per cell crossing)." + where, ""] + _table(
-        ["dataset", "TF", "size", "peer", "views", "peer frame ms", "our best (ms)", "peer / our best",
-         "PSNR vs naive", "image"], table, "lllllrrrrl") + [""]
+            "scalars to 15 bits; yt samples cell-centred data per cell crossing). *Cores busy*: the "
+            "peer's CPU time / wall time while timed (we use every core through Numba)." + where, ""] + _table(
+        ["dataset", "TF", "size", "peer", "views", "peer frame ms", "cores busy", "our best (ms)",
+         "peer / our best", "PSNR vs naive", "image"], table, "lllllrrrrrl") + [""]
 
 
 def _approximate(rows: list[RenderRow]) -> list[str]:
