@@ -50,19 +50,44 @@ def _grow2(a, n):
 
 @njit(cache=True)
 def _bounds(lo, hi, b, e, out, off):
-    """AABB of elements ``b..e-1`` into ``out[off:off+6]`` and centre bounds into ``out[off+6:off+12]``."""
-    for a in range(3):
-        out[off + a] = math.inf
-        out[off + 3 + a] = -math.inf
-        out[off + 6 + a] = math.inf
-        out[off + 9 + a] = -math.inf
+    """AABB of elements ``b..e-1`` into ``out[off:off+6]`` and centre bounds into
+    ``out[off+6:off+12]`` (accumulated in registers: one sequential pass)."""
+    l0 = l1 = l2 = c0 = c1 = c2 = math.inf
+    h0 = h1 = h2 = d0 = d1 = d2 = -math.inf
     for i in range(b, e):
-        for a in range(3):
-            c = 0.5 * (lo[i, a] + hi[i, a])
-            out[off + a] = min(out[off + a], lo[i, a])
-            out[off + 3 + a] = max(out[off + 3 + a], hi[i, a])
-            out[off + 6 + a] = min(out[off + 6 + a], c)
-            out[off + 9 + a] = max(out[off + 9 + a], c)
+        x0 = lo[i, 0]
+        x1 = lo[i, 1]
+        x2 = lo[i, 2]
+        y0 = hi[i, 0]
+        y1 = hi[i, 1]
+        y2 = hi[i, 2]
+        l0 = min(l0, x0)
+        l1 = min(l1, x1)
+        l2 = min(l2, x2)
+        h0 = max(h0, y0)
+        h1 = max(h1, y1)
+        h2 = max(h2, y2)
+        m0 = 0.5 * (x0 + y0)
+        m1 = 0.5 * (x1 + y1)
+        m2 = 0.5 * (x2 + y2)
+        c0 = min(c0, m0)
+        c1 = min(c1, m1)
+        c2 = min(c2, m2)
+        d0 = max(d0, m0)
+        d1 = max(d1, m1)
+        d2 = max(d2, m2)
+    out[off + 0] = l0
+    out[off + 1] = l1
+    out[off + 2] = l2
+    out[off + 3] = h0
+    out[off + 4] = h1
+    out[off + 5] = h2
+    out[off + 6] = c0
+    out[off + 7] = c1
+    out[off + 8] = c2
+    out[off + 9] = d0
+    out[off + 10] = d1
+    out[off + 11] = d2
 
 
 @njit(cache=True)
@@ -83,40 +108,31 @@ def _swap(lo, hi, perm, i, j):
 def _partition(lo, hi, perm, b, e, axis, mid, use_le, lb, rb):
     """Quicksort-like in-place partition of elements ``b..e-1`` by AABB centre.
 
-    Left: centre < ``mid`` (``<=`` when ``use_le``). While partitioning, the AABB and
-    centre bounds of each side are accumulated into ``lb`` / ``rb`` (12 values:
-    AABB lo, hi, centre lo, hi); ``lb[3 + axis]`` is the left plane (max of the left
-    elements), ``rb[axis]`` the right plane (min of the right ones). Returns the
-    first index of the right side.
+    Left: centre < ``mid`` (``<=`` when ``use_le``). Then the AABB and centre bounds
+    of each side go to ``lb`` / ``rb`` (12 values: AABB lo, hi, centre lo, hi);
+    ``lb[3 + axis]`` is the left plane (max of the left elements), ``rb[axis]`` the
+    right plane (min of the right ones). Returns the first index of the right side.
     """
-    for a in range(3):
-        lb[a] = math.inf
-        lb[3 + a] = -math.inf
-        lb[6 + a] = math.inf
-        lb[9 + a] = -math.inf
-        rb[a] = math.inf
-        rb[3 + a] = -math.inf
-        rb[6 + a] = math.inf
-        rb[9 + a] = -math.inf
     i = b
-    j = e
-    while i < j:
-        c = 0.5 * (lo[i, axis] + hi[i, axis])
-        if c < mid or (use_le and c == mid):
-            k = i
+    j = e - 1
+    while True:
+        while i <= j:
+            c = 0.5 * (lo[i, axis] + hi[i, axis])
+            if not (c < mid or (use_le and c == mid)):
+                break
             i += 1
-            side = lb
-        else:
+        while i <= j:
+            c = 0.5 * (lo[j, axis] + hi[j, axis])
+            if c < mid or (use_le and c == mid):
+                break
             j -= 1
-            _swap(lo, hi, perm, i, j)
-            k = j
-            side = rb
-        for a in range(3):
-            ca = 0.5 * (lo[k, a] + hi[k, a])
-            side[a] = min(side[a], lo[k, a])
-            side[3 + a] = max(side[3 + a], hi[k, a])
-            side[6 + a] = min(side[6 + a], ca)
-            side[9 + a] = max(side[9 + a], ca)
+        if i >= j:
+            break
+        _swap(lo, hi, perm, i, j)
+        i += 1
+        j -= 1
+    _bounds(lo, hi, b, i, lb, 0)
+    _bounds(lo, hi, i, e, rb, 0)
     return i
 
 
