@@ -98,10 +98,9 @@ def tile_frames(normals: np.ndarray) -> np.ndarray:
     return np.stack([u, v, w], axis=1)
 
 
-def _segment_reduce(values: np.ndarray, seg: np.ndarray, n: int, op) -> np.ndarray:
-    out = np.full((n,) + values.shape[1:], np.inf if op is np.minimum else -np.inf)
-    op.at(out, seg, values)
-    return out
+def _segment_reduce(values: np.ndarray, starts: np.ndarray, op) -> np.ndarray:
+    """``op`` over each contiguous segment of rows (every segment non-empty)."""
+    return op.reduceat(values, starts, axis=0)
 
 
 def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, tile_count: np.ndarray,
@@ -116,7 +115,8 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     res : (T,) int
         Interior resolution per tile (texels along an edge, without the border).
     tile_start, tile_count, refs
-        Primitive references of each leaf.
+        Primitive references of each leaf, contiguous and in tile order (every
+        tile holds at least one).
     tris, faces, vnormals
         Triangle corners (m, 3, 3), faces and vertex normals (triangle meshes), or
     points, pnormals, radii
@@ -136,8 +136,9 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
         rr = radii[refs][:, None]
         lo_r, hi_r = c - rr, c + rr
         plo, phi = points[refs] - rr, points[refs] + rr
-    lo = _segment_reduce(lo_r, seg, n_tiles, np.minimum)
-    hi = _segment_reduce(hi_r, seg, n_tiles, np.maximum)
+    starts = np.asarray(tile_start, np.int64)
+    lo = _segment_reduce(lo_r, starts, np.minimum)
+    hi = _segment_reduce(hi_r, starts, np.maximum)
     res = np.maximum(np.asarray(res, np.int64), MIN_RES)
     ext = hi[:, :2] - lo[:, :2]
     # A degenerate (line-like) extent still needs a finite texel size.
@@ -167,8 +168,8 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     ext_t = ((r_tot - 1) * steps[:, 1])[:, None]
     corners = np.stack([o + a * ext_s * u + b * ext_t * v + tile_h[:, c:c + 1] * w
                         for a in (0, 1) for b in (0, 1) for c in (0, 1)])
-    box_lo = np.maximum(corners.min(axis=0), _segment_reduce(plo, seg, n_tiles, np.minimum) - grow[:, None])
-    box_hi = np.minimum(corners.max(axis=0), _segment_reduce(phi, seg, n_tiles, np.maximum) + grow[:, None])
+    box_lo = np.maximum(corners.min(axis=0), _segment_reduce(plo, starts, np.minimum) - grow[:, None])
+    box_hi = np.minimum(corners.max(axis=0), _segment_reduce(phi, starts, np.maximum) + grow[:, None])
     boxes = np.stack([box_lo, box_hi], axis=1).astype(np.float32)
     nrm = np.clip(np.rint(normal * NORMAL_SCALE), -127, 127).astype(np.int8)
     return Atlas(proj.astype(np.float32), tile_h, rect, depth, nrm, boxes)

@@ -113,8 +113,11 @@ def _mesh_prims(mesh: TriangleMesh, curvature_deg: float) -> _Prims:
     vn = mesh.vertex_normals
     # Vertex curvature: the largest angle between its normal and an adjacent face's.
     cos_corner = np.einsum("fck,fk->fc", vn[mesh.faces], fn)
-    vmin = np.full(len(mesh.vertices), 1.0)
-    np.minimum.at(vmin, mesh.faces.ravel(), cos_corner.ravel())
+    order = np.argsort(mesh.faces.ravel(), kind="stable")
+    vids = mesh.faces.ravel()[order]
+    first = np.flatnonzero(np.r_[True, vids[1:] != vids[:-1]])
+    vmin = np.ones(len(mesh.vertices))
+    vmin[vids[first]] = np.minimum.reduceat(cos_corner.ravel()[order], first)
     curvy = (vmin < math.cos(math.radians(curvature_deg)))[mesh.faces].sum(axis=1).astype(np.float64) / 3.0
     lo, hi = tris.min(axis=1), tris.max(axis=1)
     comp = K.face_components(mesh.faces, len(mesh.vertices))
