@@ -5,7 +5,9 @@ Mapping of a sparsecast case onto yt:
 - volume: a uniform grid (``yt.load_uniform_grid``) indexed ``[x, y, z]`` whose
   cells are centred on our samples (bounding box half a voxel beyond our domain);
 - TF: a ``ColorTransferFunction`` with grey opacity and one bin per entry of our
-  table, linear scale;
+  table, linear scale; yt treats values on its bounds and 0.0 as transparent where
+  we clamp, so the data are shifted by a constant and the table padded by one
+  clamped entry per side;
 - opacity: yt integrates emission-absorption, ``rgba = dt e + (1 - dt a) rgba``
   with ``dt`` in units of the ray parameter, and weights the colour by ``a``. Our
   sample opacity ``a`` per ``unit_distance`` is an extinction
@@ -54,7 +56,14 @@ class Scene:
         import yt
 
         yt.set_log_level(40)  # no per-frame INFO lines on stderr
-        data = np.ascontiguousarray(volume.data.transpose(2, 1, 0))  # [x, y, z]
+        # yt's table look-up returns 0 for values on or outside its bounds and for any
+        # value that is not a normal float (0.0 included), where our look-up clamps. So
+        # yt gets the data shifted by a constant (no value is 0) and a table one entry
+        # wider on each side, holding our end entries: the same TF as ours.
+        lo, hi = tf.value_range
+        self._step = (hi - lo) / (tf.table_size - 1)
+        self._shift = (hi - lo) + 1.0 - lo
+        data = np.ascontiguousarray(volume.data.transpose(2, 1, 0), dtype=np.float64) + self._shift  # [x, y, z]
         spacing = np.asarray(volume.spacing, np.float64)
         self._lo = np.asarray(volume.origin, np.float64) - 0.5 * spacing
         self._hi = self._lo + np.array(volume.dims, np.float64) * spacing
@@ -81,11 +90,14 @@ class Scene:
         import yt
 
         tf = self._tf
-        a = np.clip(tf.table[:, 3].astype(np.float64), 0.0, 0.999)
+        table = np.concatenate([tf.table[:1], tf.table, tf.table[-1:]]).astype(np.float64)  # clamped ends
+        a = np.clip(table[:, 3], 0.0, 0.999)
         sigma = -np.log1p(-a) / self._unit  # extinction per world length
-        ytf = yt.ColorTransferFunction(tf.value_range, nbins=tf.table_size, grey_opacity=True)
+        lo, hi = tf.value_range
+        bounds = (lo + self._shift - self._step, hi + self._shift + self._step)
+        ytf = yt.ColorTransferFunction(bounds, nbins=len(table), grey_opacity=True)
         for channel in range(3):  # yt weights colour by the alpha table: emission = rgb * sigma
-            ytf.funcs[channel].y[:] = tf.table[:, channel]
+            ytf.funcs[channel].y[:] = table[:, channel]
         ytf.funcs[3].y[:] = sigma * ray_length
         return ytf
 
