@@ -184,18 +184,21 @@ def test_a_failing_section_is_noted_and_the_run_goes_on(tiny_dataset, fake_secti
 def test_peer_renders_the_same_case(peer, tiny_dataset, tmp_path):
     pytest.importorskip(peer)
     cfg = BenchConfig(datasets=[tiny_dataset], methods=["naive", "grid-pc"], sizes=[(24, 16)],
-                      views=[(30.0, 20.0), (90.0, 45.0), (0.0, 0.0)], repeat=1, warmup=0, dense_tf=False,
+                      views=[(30.0, 20.0), (90.0, 45.0), (0.0, 0.0)], repeat=1, warmup=0, dense_tf=True,
                       irt=False, peers=[peer], peer_views=2, images_dir=tmp_path / "img")
     records = run_benchmarks(cfg)
     peer_recs = [r for r in records if r["method"] == peer]
-    assert [r["view"] for r in peer_recs] == ["az30_el20", "az90_el45"]  # the first peer_views views
+    # the first peer_views views, with the sparse and the dense TF (zeros are not empty there)
+    assert [(r["tf"], r["view"]) for r in peer_recs] == [
+        ("default", "az30_el20"), ("default", "az90_el45"), ("dense", "az30_el20"), ("dense", "az90_el45")]
     for r in peer_recs:
         assert r["peer"] and r["ms"] > 0 and r["ratio_to_best"] > 0 and r["cores_busy"] >= 0
         # The same volume, camera, step and TF: close to our image (a wrong axis order,
         # camera or opacity scale drops this below ~20 dB).
         assert r["psnr_vs_naive"] > 30.0, r
     saved = sorted(p.name for p in (tmp_path / "img").iterdir())
-    assert saved == sorted([f"tiny_default_24x16_az30_el20_{peer}.png", "tiny_default_24x16_az30_el20_sparsecast.png"])
+    assert saved == sorted(f"tiny_{tf}_24x16_az30_el20_{who}.png" for tf in ("default", "dense")
+                           for who in (peer, "sparsecast"))
     from sparsecast.bench.plots import write_plots
 
     assert "peer_images.png" in [p.name for p in write_plots(records, tmp_path / "figs")]
