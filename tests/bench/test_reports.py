@@ -40,7 +40,8 @@ def _run(scale: float = 1.0) -> list[dict]:
             {"dataset": "d", "tf": "default", "phase": "tf_classify", "ms": 0.1, "occupancy": 0.25}]
     for m, build in (("naive", 0.0), ("grid-pc", 2.0), ("lbvh", 3.0)):
         recs.append({"dataset": "d", "tf": "default", "method": m, "phase": "build_cold", "ms": 10 * build})
-        recs.append({"dataset": "d", "tf": "default", "method": m, "phase": "rebuild", "ms": build, "bytes": 4096})
+        recs.append({"dataset": "d", "tf": "default", "method": m, "phase": "rebuild", "ms": build, "bytes": 4096,
+                     "index_stats": {"phases": {"classify": build / 4, "split": 3 * build / 4}}})
     for view in ("v1", "v2"):
         recs += [_render("d", "naive", 100.0 * scale, view=view, samples=1000),
                  _render("d", "grid-pc", 10.0 * scale, view=view, samples=300),
@@ -76,6 +77,7 @@ def test_markdown_report_names_best_index_and_peers(tmp_path):
     assert "## Peers on the same cases" in text and "41.0 dB" in text and "`d_vtk.png`" in text
     assert "## Approximate indices" in text and "33.0 dB" in text
     assert "yt is not installed" in text
+    assert "| `grid-pc` | 20.0 | 2.00 | classify 0.500 · split 1.50 | 4.0 KiB |" in text  # per-dataset table
     assert "![frame_times](figs/frame_times.png)" in text
 
 

@@ -145,20 +145,22 @@ def _per_dataset(rows: list[RenderRow], builds: dict) -> list[str]:
     for (ds, tf), rs in groups.items():
         sizes = sorted({(r.width, r.height) for r in rs})
         methods = list(dict.fromkeys(r.method for r in rs))
-        header = ["method", "first build ms", "rebuild ms", "bytes"]
+        header = ["method", "first build ms", "rebuild ms", "rebuild phases (ms)", "bytes"]
         for w, h in sizes:
             header += [f"{w}² frame ms", f"{w}² × naive", f"{w}² work eff.", f"{w}² Msamples/s"]
         table = []
         for m in methods:
             b = builds.get((ds, tf, m, "build_cold"), {})
             rb = builds.get((ds, tf, m, "rebuild"), {})
-            row = [f"`{m}`", _ms(b.get("ms")), _ms(rb.get("ms")), _bytes(rb.get("bytes"))]
+            phases = (rb.get("index_stats") or {}).get("phases") or {}
+            steps = " · ".join(f"{k} {_ms(v)}" for k, v in phases.items() if v is not None) or "–"
+            row = [f"`{m}`", _ms(b.get("ms")), _ms(rb.get("ms")), steps, _bytes(rb.get("bytes"))]
             for w, h in sizes:
                 r = next((x for x in rs if x.method == m and (x.width, x.height) == (w, h)), None)
                 row += ([_ms(r.ms), _f(r.speedup_vs_naive, ".2f", "×"), _f(r.work_efficiency, ".2f"),
                          _f(r.msamples_per_s, ".0f")] if r else ["–"] * 4)
             table.append(row)
-        out += [f"### {ds}, TF `{tf}`", ""] + _table(header, table) + [""]
+        out += [f"### {ds}, TF `{tf}`", ""] + _table(header, table, "lrrl" + "r" * (len(header) - 4)) + [""]
     return out
 
 
