@@ -122,6 +122,18 @@ def test_loaders(tmp_path):
     ps = sc.load_particles(tmp_path / "p.ply")
     assert np.allclose(ps.centers, table[:, :3]) and np.allclose(ps.colors, cols[:, :3] / 255.0)
     assert np.all(ps.radii > 0)
+    # radius and colour vertex properties, ASCII and binary
+    header = ("ply\nformat {fmt} 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+              "property float radius\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n")
+    (tmp_path / "a.ply").write_text(header.format(fmt="ascii") + "0 0 0 0.5 255 0 0\n1 2 3 0.25 0 255 0\n")
+    rec = np.array([(0, 0, 0, 0.5, 255, 0, 0), (1, 2, 3, 0.25, 0, 255, 0)],
+                   dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("radius", "<f4"), ("red", "u1"),
+                          ("green", "u1"), ("blue", "u1")])
+    (tmp_path / "b.ply").write_bytes(header.format(fmt="binary_little_endian").encode() + rec.tobytes())
+    for name in ("a.ply", "b.ply"):
+        ps = sc.load_particles(tmp_path / name)
+        assert np.allclose(ps.centers, [[0, 0, 0], [1, 2, 3]]) and np.allclose(ps.radii, [0.5, 0.25])
+        assert np.allclose(ps.colors, [[1, 0, 0], [0, 1, 0]])
     (tmp_path / "bad.xyz").write_text("1 2 3")
     with pytest.raises(FileFormatError, match="suffix"):
         sc.load_particles(tmp_path / "bad.xyz")

@@ -113,11 +113,12 @@ def _read_ply(p: Path):
     radii = None
     raw = getattr(geom, "metadata", {}).get("_ply_raw", {})
     vdata = raw.get("vertex", {}).get("data") if isinstance(raw, dict) else None
-    if vdata is not None and getattr(vdata, "dtype", None) is not None and vdata.dtype.names:
-        for name in ("radius", "scale"):
-            if name in vdata.dtype.names:
-                radii = np.asarray(vdata[name], dtype=np.float64).reshape(-1)
-                break
+    # binary PLY: a structured array; ASCII PLY: a dict of columns
+    names = vdata.keys() if isinstance(vdata, dict) else (getattr(getattr(vdata, "dtype", None), "names", None) or ())
+    for name in ("radius", "scale"):
+        if name in names:
+            radii = np.asarray(vdata[name], dtype=np.float64).reshape(-1)
+            break
     colors = None
     vc = getattr(geom, "colors", None)
     if vc is None and hasattr(geom, "visual") and getattr(geom.visual, "kind", None) == "vertex":
