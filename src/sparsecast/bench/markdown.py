@@ -147,7 +147,7 @@ def _per_dataset(rows: list[RenderRow], builds: dict) -> list[str]:
         methods = list(dict.fromkeys(r.method for r in rs))
         header = ["method", "first build ms", "rebuild ms", "rebuild phases (ms)", "bytes"]
         for w, h in sizes:
-            header += [f"{w}² frame ms", f"{w}² × naive", f"{w}² work eff.", f"{w}² Msamples/s"]
+            header += [f"{w}² frame ms", f"{w}² × naive", f"{w}² M samples (oracle)", f"{w}² work eff."]
         table = []
         for m in methods:
             b = builds.get((ds, tf, m, "build_cold"), {})
@@ -157,8 +157,9 @@ def _per_dataset(rows: list[RenderRow], builds: dict) -> list[str]:
             row = [f"`{m}`", _ms(b.get("ms")), _ms(rb.get("ms")), steps, _bytes(rb.get("bytes"))]
             for w, h in sizes:
                 r = next((x for x in rs if x.method == m and (x.width, x.height) == (w, h)), None)
-                row += ([_ms(r.ms), _f(r.speedup_vs_naive, ".2f", "×"), _f(r.work_efficiency, ".2f"),
-                         _f(r.msamples_per_s, ".0f")] if r else ["–"] * 4)
+                taken = f"{_f(r.samples and r.samples / 1e6, '.2f')} ({_f(r.oracle and r.oracle / 1e6, '.2f')})" if r else ""
+                row += ([_ms(r.ms), _f(r.speedup_vs_naive, ".2f", "×"), taken, _f(r.work_efficiency, ".2f")]
+                        if r else ["–"] * 4)
             table.append(row)
         out += [f"### {ds}, TF `{tf}`", ""] + _table(header, table, "lrrl" + "r" * (len(header) - 4)) + [""]
     return out

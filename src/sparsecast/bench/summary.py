@@ -34,6 +34,8 @@ class RenderRow:
     work_efficiency : float or None
         Samples taken / oracle samples (in non-empty space), summed over views:
         1.0 is a perfect empty-space skipper; peers have none.
+    samples, oracle : float or None
+        Samples taken and oracle samples per frame (mean over views).
     psnr : float or None
         Median PSNR against our naive image (approximate indices, peers).
     """
@@ -48,6 +50,8 @@ class RenderRow:
     speedup_vs_naive: float | None
     work_efficiency: float | None
     msamples_per_s: float | None
+    samples: float | None
+    oracle: float | None
     bytes: int | None
     psnr: float | None
     exact: bool
@@ -80,6 +84,8 @@ def render_rows(records: list[Record]) -> list[RenderRow]:
             speedup_vs_naive=_median([r.get("speedup_vs_naive") for r in recs]),
             work_efficiency=samples / oracle if samples and oracle else None,
             msamples_per_s=_median([r.get("msamples_per_s") for r in recs]),
+            samples=samples / len(recs) if samples else None,
+            oracle=oracle / len(recs) if oracle else None,
             bytes=recs[0].get("bytes"),
             psnr=_median([r.get("psnr_vs_naive") for r in recs]),
             exact=bool(recs[0].get("exact", True)),
