@@ -40,21 +40,8 @@ def _slab_tile(o, d, lo, hi, t0, t1):
 
 
 @njit(cache=True, inline="always")
-def _cell_valid(depth, x0, y0, i, j):
-    return (depth[y0 + j, x0 + i] > EMPTY_TEST and depth[y0 + j, x0 + i + 1] > EMPTY_TEST
-            and depth[y0 + j + 1, x0 + i] > EMPTY_TEST and depth[y0 + j + 1, x0 + i + 1] > EMPTY_TEST)
-
-
-@njit(cache=True, inline="always")
-def _cell_height(depth, x0, y0, i, j, s, t):
-    """Bilinear height of cell ``(i, j)`` at texel coordinates ``(s, t)`` (extrapolated
-    outside the cell, so a cell's entry and exit points use the same patch)."""
-    fs = s - i
-    ft = t - j
-    h00 = depth[y0 + j, x0 + i]
-    h10 = depth[y0 + j, x0 + i + 1]
-    h01 = depth[y0 + j + 1, x0 + i]
-    h11 = depth[y0 + j + 1, x0 + i + 1]
+def _bilerp(h00, h10, h01, h11, fs, ft):
+    """Bilinear interpolation at ``(fs, ft)`` in a cell (extrapolates outside ``[0, 1]^2``)."""
     return (1.0 - ft) * ((1.0 - fs) * h00 + fs * h10) + ft * ((1.0 - fs) * h01 + fs * h11)
 
 
@@ -131,26 +118,41 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     t = ta
     i = min(max(int(math.floor(s0 + t * ds)), 0), r - 2)
     j = min(max(int(math.floor(u0 + t * du)), 0), r - 2)
+    f_in = 0.0
+    have_f_in = False  # f at the entry point, carried over from the previous valid cell
     for _ in range(2 * r + 2):
         t_exit = min(_next_border(i, s0, ds), _next_border(j, u0, du), tb)
         if t_exit < t:
             t_exit = t
-        if _cell_valid(depth, x0, y0, i, j):
-            fa = h0 + t * dh - _cell_height(depth, x0, y0, i, j, s0 + t * ds, u0 + t * du)
-            fb = h0 + t_exit * dh - _cell_height(depth, x0, y0, i, j, s0 + t_exit * ds, u0 + t_exit * du)
+        h00 = depth[y0 + j, x0 + i]
+        h10 = depth[y0 + j, x0 + i + 1]
+        h01 = depth[y0 + j + 1, x0 + i]
+        h11 = depth[y0 + j + 1, x0 + i + 1]
+        if h00 > EMPTY_TEST and h10 > EMPTY_TEST and h01 > EMPTY_TEST and h11 > EMPTY_TEST:
+            # Bilinear patches agree on a shared border, so the previous cell's
+            # exit value is this cell's entry value.
+            if have_f_in:
+                fa = f_in
+            else:
+                fa = h0 + t * dh - _bilerp(h00, h10, h01, h11, s0 + t * ds - i, u0 + t * du - j)
+            fb = h0 + t_exit * dh - _bilerp(h00, h10, h01, h11, s0 + t_exit * ds - i, u0 + t_exit * du - j)
             if (fa <= 0.0) != (fb <= 0.0):
                 a, b = t, t_exit
                 for _ in range(SECANT_STEPS):
                     if fa == fb:
                         break
                     c = a - fa * (b - a) / (fb - fa)
-                    fc = h0 + c * dh - _cell_height(depth, x0, y0, i, j, s0 + c * ds, u0 + c * du)
+                    fc = h0 + c * dh - _bilerp(h00, h10, h01, h11, s0 + c * ds - i, u0 + c * du - j)
                     if (fc <= 0.0) == (fa <= 0.0):
                         a, fa = c, fc
                     else:
                         b, fb = c, fc
                 th = a - fa * (b - a) / (fb - fa) if fa != fb else a
                 return th, s0 + th * ds, u0 + th * du
+            f_in = fb
+            have_f_in = True
+        else:
+            have_f_in = False
         if t_exit >= tb:
             break
         # Step into the neighbour across the nearer border.

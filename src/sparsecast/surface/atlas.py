@@ -161,8 +161,8 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     pad = 0.01 * steps.max(axis=1)  # keep grazing hits at the extreme heights
     tile_h = tile_height_range(rect, depth, pad)
     # World box of a tile: its oriented box, cut down to the primitives' box grown
-    # by the dilated border (dilation extrapolates at most a few texels out).
-    grow = (BORDER + 1) * steps.max(axis=1)
+    # by the border (the conservative rim reaches under one texel out).
+    grow = BORDER * steps.max(axis=1)
     u, v, w = frames[:, 0], frames[:, 1], frames[:, 2]
     ext_s = ((r_tot - 1) * steps[:, 0])[:, None]
     ext_t = ((r_tot - 1) * steps[:, 1])[:, None]
