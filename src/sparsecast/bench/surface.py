@@ -161,8 +161,11 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
                 record: Callable[..., None]) -> None:
     cam = Camera.orbit(mesh, *VIEW)
     diag = mesh.diagonal
-    builds = max(1, min(repeat, 3))  # builds of 1 M triangles take seconds: fewer runs
-    build_warm = min(warmup, 1)
+    # Builds of a million triangles take seconds: one timed run (kernels are
+    # compiled by the smaller meshes first, or loaded from Numba's cache).
+    big = mesh.n_triangles > 300_000
+    builds = 1 if big else max(1, min(repeat, 3))
+    build_warm = 0 if big else min(warmup, 1)
 
     def build_and_record(method: str, make: Callable[[], SurfaceIndex], **extra) -> SurfaceIndex:
         ms, runs, index = median_ms(make, builds, build_warm)
