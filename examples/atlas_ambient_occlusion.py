@@ -27,17 +27,7 @@ from sparsecast.surface import build_rbvh, raycast
 from sparsecast.surface.atlas import atlas_texels, read_layer
 from sparsecast.surface.mesh import TriangleMesh, grid_plane, icosphere, z_up
 from sparsecast.surface.render import cast_camera, shade
-
-
-def cosine_directions(normals: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One cosine-weighted direction per normal (the hemisphere around it)."""
-    u1, u2 = rng.random(len(normals)), rng.random(len(normals))
-    r, phi = np.sqrt(u1), 2 * np.pi * u2
-    a = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t1 = np.cross(normals, a)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(normals, t1)
-    return (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - u1)[:, None] * normals
+from sparsecast.surface.secondary import cosine_directions, facing
 
 
 def ambient_occlusion(index, points, normals, reach, n_rays, rng) -> np.ndarray:
@@ -100,8 +90,7 @@ def main() -> None:
     if tri.any():
         o, d = cam.rays(w, h)
         p = o[tri] + hits.t[tri][:, None] * d[tri]
-        n = hits.normals[tri].astype(np.float64)
-        n = np.where(np.sum(n * d[tri], axis=1, keepdims=True) > 0, -n, n)
+        n = facing(hits.normals[tri], d[tri])
         ao[tri] = ambient_occlusion(index, p, n, reach, args.rays, rng)
     dist = float(np.linalg.norm(cam.eye - index.center))
     plain = shade(hits, cam, "shaded", (dist - index.diagonal, dist + index.diagonal))

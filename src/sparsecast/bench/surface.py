@@ -34,6 +34,7 @@ from ..surface._bvh_kernels import cast_rays
 from ..surface.index import SurfaceIndex
 from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
 from ..surface.render import cast_camera, shade
+from ..surface.secondary import cosine_directions, facing
 from .datasets import find_shared_data
 from .timing import median_ms
 
@@ -66,21 +67,12 @@ DEFAULT_DATASETS = ("bunny", "beast", "bunny-1m")
 
 def _diffuse_rays(hits, cam: Camera, width: int, height: int, eps: float, seed: int = 7):
     """One cosine-weighted hemisphere ray per primary hit, leaving the side the camera sees."""
-    _, d = cam.rays(width, height)
+    o, d = cam.rays(width, height)
     hit = np.isfinite(hits.t)
-    n = hits.normals[hit].astype(np.float64)
-    dv = d[hit]
-    n = np.where(np.sum(n * dv, axis=1, keepdims=True) > 0, -n, n)
-    p = cam.rays(width, height)[0][hit] + hits.t[hit][:, None] * dv
-    rng = np.random.default_rng(seed)
-    u1, u2 = rng.random(len(n)), rng.random(len(n))
-    r, phi = np.sqrt(u1), 2 * np.pi * u2
-    a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t1 = np.cross(n, a)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(n, t1)
-    dirs = (r * np.cos(phi))[:, None] * t1 + (r * np.sin(phi))[:, None] * t2 + np.sqrt(1 - u1)[:, None] * n
-    return np.ascontiguousarray(p + eps * n), np.ascontiguousarray(dirs / np.linalg.norm(dirs, axis=1, keepdims=True))
+    n = facing(hits.normals[hit], d[hit])
+    p = o[hit] + hits.t[hit][:, None] * d[hit]
+    dirs = cosine_directions(n, np.random.default_rng(seed))
+    return np.ascontiguousarray(p + eps * n), np.ascontiguousarray(dirs)
 
 
 def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], None]:

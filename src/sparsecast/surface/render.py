@@ -12,6 +12,7 @@ from ..errors import ParameterError
 from ..renderers.image import Image
 from ._bvh_kernels import cast_primary
 from .index import SurfaceIndex
+from .secondary import facing
 
 __all__ = ["render_surface", "cast_camera", "PixelHits", "shade"]
 
@@ -60,12 +61,10 @@ def shade(hits: PixelHits, camera: Camera, mode: str, depth_range: tuple[float, 
     h, w = hits.t.shape
     _, d = camera.rays(w, h)
     hit = np.isfinite(hits.t)
-    n = hits.normals.astype(np.float64)
     # Two-sided: turn every normal towards the viewer.
-    facing = np.sum(n * d, axis=-1)
-    n = np.where(facing[..., None] > 0, -n, n)
+    n = facing(hits.normals, d)
     if mode == "shaded":
-        c = ALBEDO * (AMBIENT + DIFFUSE * np.abs(facing))
+        c = ALBEDO * (AMBIENT + DIFFUSE * np.abs(np.sum(n * d, axis=-1)))
         rgb = np.repeat(c[..., None], 3, axis=-1)
     elif mode == "normal":
         rgb = 0.5 + 0.5 * n
