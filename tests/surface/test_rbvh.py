@@ -205,3 +205,26 @@ def test_bad_parameters():
         build_rbvh(PointCloud(np.random.default_rng(0).normal(size=(10, 3))))
     with pytest.raises(ParameterError, match="surface"):
         build_rbvh(np.zeros((3, 3)))
+
+
+def test_mip_levels_follow_the_footprint_without_cracks(rng):
+    mesh = icosphere(5)
+    index = build_rbvh(mesh, "Q2", mip_levels=3)
+    n = index.n_tiles
+    assert index.tile_rect.shape[0] == 3 * n
+    assert np.all(index.tile_rect[2 * n:, 2] <= index.tile_rect[:n, 2])  # coarser levels are smaller
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    fine = raycast(index, -3.0 * d, d)
+    assert fine.hit.all() and fine.tile.max() < n  # no footprint: the finest level
+    # A footprint of several texels picks the coarsest level, which is crack-free too.
+    coarse = raycast(index, -3.0 * d, d, footprint=(0.0, 0.05))
+    assert coarse.hit.all() and coarse.tile.min() >= 2 * n
+    err = np.abs(np.linalg.norm(coarse.points, axis=1) - 1.0)
+    assert err.max() <= 4 * TEXELS * texel(mesh, "Q2") + 1e-3
+    # A camera far away uses coarse levels for its wide pixels.
+    from sparsecast import Camera
+    from sparsecast.surface.render import cast_camera
+
+    hits = cast_camera(index, Camera.look_at((0, -40, 0), (0, 0, 0), fov_y=5.0), 48, 48)
+    assert (hits.tile[np.isfinite(hits.t)] >= n).any()

@@ -80,7 +80,7 @@ def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], Non
     out = (np.empty(n), np.empty((n, 3), np.float32), np.empty(n, np.int32), np.empty(n, np.int32),
            np.empty((n, 2), np.float32))
     args = index.kernel_args()
-    return lambda: cast_rays(*args, o, d, 0.0, np.inf, index.depth + 2, *out)
+    return lambda: cast_rays(*args, o, d, 0.0, np.inf, index.depth + 2, 0.0, 0.0, index.mip_levels, *out)
 
 
 def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: int, warmup: int):

@@ -79,11 +79,27 @@ def intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
     return t, u, v
 
 
+@njit(cache=True, inline="always")
+def _mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
+    """Tile of leaf ``k`` at the mip level whose texel is at least the ray footprint."""
+    fp = fp0 + spread * max(t_entry, 0.0)
+    u2 = tile_proj[k, 3] * tile_proj[k, 3] + tile_proj[k, 4] * tile_proj[k, 4] + tile_proj[k, 5] * tile_proj[k, 5]
+    ratio = fp * math.sqrt(u2)  # footprint in level-0 texels
+    level = 0
+    while ratio >= 2.0 and level < n_levels - 1:
+        ratio *= 0.5
+        level += 1
+    return k + level * n_tiles
+
+
 @njit(cache=True)
 def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
-                ox, oy, oz, dx, dy, dz, t_min, t_max, stack):
+                ox, oy, oz, dx, dy, dz, t_min, t_max, stack, fp0, spread, n_levels):
     """Nearest hit along the ray in ``[t_min, t_max]``.
+
+    With ``n_levels`` mip levels, a tile is searched at the level whose texels
+    match the ray's footprint ``fp0 + spread * t`` where the ray enters the leaf.
 
     Returns ``(t, nx, ny, nz, face, tile, a, b)``: ``t = inf`` on a miss; the unit
     shading normal; the mesh face (triangle hits, else -1) or tile (tile hits,
@@ -126,6 +142,9 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                     best, face, best_k, tile, ha, hb = t, tri_face[k], k, -1, u, v
         else:
             k = nchild[node]
+            if n_levels > 1:
+                k = _mip_tile(k, ray_box(nb, node, ox, oy, oz, ix, iy, iz, t_min, best), fp0, spread,
+                              n_levels, tile_proj, tile_rect.shape[0] // n_levels)
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
             if t < best:
                 best, face, tile, ha, hb = t, -1, k, s, u
@@ -158,9 +177,12 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
 @njit(cache=True, parallel=True)
 def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
               tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
-              origins, dirs, t_min, t_max, stack_size,
+              origins, dirs, t_min, t_max, stack_size, fp0, spread, n_levels,
               out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of a batch of rays (unit directions), in parallel chunks."""
+    """Closest hits of a batch of rays (unit directions), in parallel chunks.
+
+    ``fp0 + spread * t`` is the rays' footprint for mip selection (0, 0: finest).
+    """
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for c in prange(n_chunks):
@@ -170,7 +192,7 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
                 origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                t_min, t_max, stack)
+                t_min, t_max, stack, fp0, spread, n_levels)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
             out_face[r], out_tile[r] = f, tl
@@ -180,13 +202,18 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
 @njit(cache=True, parallel=True)
 def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                  tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
-                 params, width, height, stack_size,
+                 params, width, height, stack_size, n_levels,
                  out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles.
 
     Outputs are per pixel: ``out_t`` (H, W), ``out_n`` (H, W, 3), ``out_face`` and
     ``out_tile`` (H, W), ``out_uv`` (H, W, 2).
     """
+    # A pixel's footprint: its angle times the distance (perspective) or its
+    # fixed width (orthographic); U and V of the camera span half the view.
+    pixel = 2.0 * math.sqrt(params[9] * params[9] + params[10] * params[10] + params[11] * params[11]) / height
+    fp0 = 0.0 if params[12] != 0.0 else pixel
+    spread = pixel if params[12] != 0.0 else 0.0
     for tile in prange(tile_count(width, height)):
         stack = np.empty(stack_size, np.int32)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
@@ -196,7 +223,7 @@ def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 t, nx, ny, nz, f, tl, a, b = closest_hit(
                     nb, nchild, ncount, tris, tri_face, faces, vnormals,
                     tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
-                    ox, oy, oz, dx, dy, dz, 0.0, np.inf, stack)
+                    ox, oy, oz, dx, dy, dz, 0.0, np.inf, stack, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
                 out_face[py, px], out_tile[py, px] = f, tl

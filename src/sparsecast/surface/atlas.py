@@ -45,7 +45,9 @@ class Atlas:
     normal : (H, W, 3) int8
         Unit normals times 127.
     boxes : (T, 2, 3) float32
-        World bounding box of each tile's surface (for the BVH over leaves).
+        World bounding box of each leaf's surface, all levels (for the BVH over leaves).
+    levels : int
+        Mip levels; the tile arrays hold ``levels * T`` rows, level by level.
     """
 
     tile_proj: np.ndarray
@@ -54,6 +56,7 @@ class Atlas:
     depth: np.ndarray
     normal: np.ndarray
     boxes: np.ndarray
+    levels: int = 1
 
     @property
     def nbytes(self) -> int:
@@ -105,8 +108,8 @@ def _segment_reduce(values: np.ndarray, starts: np.ndarray, op) -> np.ndarray:
 
 def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, tile_count: np.ndarray,
                 refs: np.ndarray, *, tris: np.ndarray | None = None, faces=None, vnormals=None,
-                points: np.ndarray | None = None, pnormals=None, radii=None) -> Atlas:
-    """Project, pack and rasterize one tile per leaf.
+                points: np.ndarray | None = None, pnormals=None, radii=None, levels: int = 1) -> Atlas:
+    """Project, pack and rasterize one tile per leaf and mip level.
 
     Parameters
     ----------
@@ -121,6 +124,10 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
         Triangle corners (m, 3, 3), faces and vertex normals (triangle meshes), or
     points, pnormals, radii
         Disc centres, normals and radii (point clouds).
+    levels : int
+        Mip levels: level ``L`` of leaf ``k`` is tile ``k + L T`` with half the
+        resolution of level ``L - 1`` (at least :data:`MIN_RES`), rasterized from
+        the primitives again (not filtered), so every level is crack-free.
     """
     n_tiles = len(res)
     frames = tile_frames(np.asarray(normals, np.float64))
@@ -139,19 +146,28 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     starts = np.asarray(tile_start, np.int64)
     lo = _segment_reduce(lo_r, starts, np.minimum)
     hi = _segment_reduce(hi_r, starts, np.maximum)
-    res = np.maximum(np.asarray(res, np.int64), MIN_RES)
+    prim_lo = _segment_reduce(plo, starts, np.minimum)
+    prim_hi = _segment_reduce(phi, starts, np.maximum)
+    res0 = np.maximum(np.asarray(res, np.int64), MIN_RES)
     ext = hi[:, :2] - lo[:, :2]
+    # Every level as a set of tiles of its own: same frames and primitives, coarser texels.
+    res_l = [np.maximum(np.ceil((res0 - 1) / 2**lv).astype(np.int64) + 1, MIN_RES) for lv in range(levels)]
+    res_all = np.concatenate(res_l)
+    frames_all = np.tile(frames, (levels, 1, 1))
+    lo_all, ext_all = np.tile(lo, (levels, 1)), np.tile(ext, (levels, 1))
     # A degenerate (line-like) extent still needs a finite texel size.
-    steps = np.maximum(ext / (res[:, None] - 1), 1e-6 * ext.max(axis=1, keepdims=True) + 1e-30)
-    r_tot = res + 2 * BORDER
-    origin_uvw = np.stack([lo[:, 0] - BORDER * steps[:, 0], lo[:, 1] - BORDER * steps[:, 1], lo[:, 2]], 1)
-    o = np.einsum("ta,tak->tk", origin_uvw, frames)
-    proj = np.concatenate([o, frames[:, 0] / steps[:, :1], frames[:, 1] / steps[:, 1:], frames[:, 2]], axis=1)
+    steps = np.maximum(ext_all / (res_all[:, None] - 1), 1e-6 * ext_all.max(axis=1, keepdims=True) + 1e-30)
+    r_tot = res_all + 2 * BORDER
+    origin_uvw = np.stack([lo_all[:, 0] - BORDER * steps[:, 0], lo_all[:, 1] - BORDER * steps[:, 1],
+                           lo_all[:, 2]], 1)
+    o = np.einsum("ta,tak->tk", origin_uvw, frames_all)
+    proj = np.concatenate([o, frames_all[:, 0] / steps[:, :1], frames_all[:, 1] / steps[:, 1:],
+                           frames_all[:, 2]], axis=1)
     rect, (h, w) = pack_tiles(r_tot)
     depth = np.full((h, w), EMPTY, np.float32)
     normal = np.zeros((h, w, 3), np.float32)
-    start = np.asarray(tile_start, np.int64)
-    count = np.asarray(tile_count, np.int64)
+    start = np.tile(starts, levels)
+    count = np.tile(np.asarray(tile_count, np.int64), levels)
     if tris is not None:
         # Conservative: the extrapolated rim is the border (see rasterize_triangles).
         rasterize_triangles(proj, rect, start, count, refs, tris, faces, vnormals, depth, normal)
@@ -160,19 +176,22 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
         dilate(rect, steps, depth, normal, BORDER, MAX_SLOPE)
     pad = 0.01 * steps.max(axis=1)  # keep grazing hits at the extreme heights
     tile_h = tile_height_range(rect, depth, pad)
-    # World box of a tile: its oriented box, cut down to the primitives' box grown
-    # by the border (the conservative rim reaches under one texel out).
-    grow = BORDER * steps.max(axis=1)
-    u, v, w = frames[:, 0], frames[:, 1], frames[:, 2]
+    # World box of a leaf: its oriented boxes (all levels), cut down to the
+    # primitives' box grown by the border (the conservative rim reaches under one
+    # texel of the coarsest level out).
+    u, v, wv = frames_all[:, 0], frames_all[:, 1], frames_all[:, 2]
     ext_s = ((r_tot - 1) * steps[:, 0])[:, None]
     ext_t = ((r_tot - 1) * steps[:, 1])[:, None]
-    corners = np.stack([o + a * ext_s * u + b * ext_t * v + tile_h[:, c:c + 1] * w
+    corners = np.stack([o + a * ext_s * u + b * ext_t * v + tile_h[:, c:c + 1] * wv
                         for a in (0, 1) for b in (0, 1) for c in (0, 1)])
-    box_lo = np.maximum(corners.min(axis=0), _segment_reduce(plo, starts, np.minimum) - grow[:, None])
-    box_hi = np.minimum(corners.max(axis=0), _segment_reduce(phi, starts, np.maximum) + grow[:, None])
+    obb_lo = corners.min(axis=0).reshape(levels, n_tiles, 3).min(axis=0)
+    obb_hi = corners.max(axis=0).reshape(levels, n_tiles, 3).max(axis=0)
+    grow = BORDER * steps.max(axis=1).reshape(levels, n_tiles).max(axis=0)
+    box_lo = np.maximum(obb_lo, prim_lo - grow[:, None])
+    box_hi = np.minimum(obb_hi, prim_hi + grow[:, None])
     boxes = np.stack([box_lo, box_hi], axis=1).astype(np.float32)
     nrm = np.clip(np.rint(normal * NORMAL_SCALE), -127, 127).astype(np.int8)
-    return Atlas(proj.astype(np.float32), tile_h, rect, depth, nrm, boxes)
+    return Atlas(proj.astype(np.float32), tile_h, rect, depth, nrm, boxes, levels)
 
 
 # -- the atlas as surface storage -------------------------------------------------

@@ -51,6 +51,8 @@ class SurfaceIndex:
         int8 normal layer (see :mod:`._rbvh_kernels`).
     depth : int
         Tree depth (the traversal stack size).
+    mip_levels : int
+        Tile rows ``k + L n_leaf_tiles`` hold mip level ``L`` of leaf tile ``k``.
     build : dict
         ``ms`` and per-phase milliseconds, plus builder parameters.
     """
@@ -71,6 +73,7 @@ class SurfaceIndex:
     atlas_normal: np.ndarray
     depth: int
     build: dict = field(default_factory=dict)
+    mip_levels: int = 1
     layers: dict = field(default_factory=dict)  # extra atlas layers (surface storage)
 
     @property
@@ -83,7 +86,8 @@ class SurfaceIndex:
 
     @property
     def n_tiles(self) -> int:
-        return int(self.tile_rect.shape[0])
+        """Tiles of the finest level (one per tile leaf)."""
+        return int(self.tile_rect.shape[0]) // self.mip_levels
 
     def kernel_args(self) -> tuple:
         """The arrays every traversal kernel takes, in order."""
@@ -114,6 +118,7 @@ class SurfaceIndex:
             "tile_leaves": int((c == TILE_LEAF).sum()),
             "triangles": int(len(self.tris)),
             "tiles": self.n_tiles,
+            "mip_levels": self.mip_levels,
             "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
             "atlas_shape": list(self.atlas_depth.shape) if self.n_tiles else [0, 0],
             "depth": self.depth,
@@ -171,10 +176,12 @@ def _rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
 
 
 def raycast(index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
-            t_max: float = np.inf) -> Hits:
+            t_max: float = np.inf, footprint: tuple[float, float] = (0.0, 0.0)) -> Hits:
     """Closest hit of every ray ``origins[i] + t * directions[i]``, ``t`` in ``[t_min, t_max]``.
 
     Directions are normalised first, so ``t`` is a world-space distance.
+    ``footprint = (w0, spread)``: the rays' width ``w0 + spread * t`` selects the
+    mip level of an RBVH built with ``mip_levels > 1`` (default: the finest).
     """
     if not isinstance(index, SurfaceIndex):
         raise ParameterError(f"index: expected a SurfaceIndex from build_bvh/build_rbvh, got {type(index).__name__}")
@@ -187,6 +194,10 @@ def raycast(index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
     face = np.empty(n, np.int32)
     tile = np.empty(n, np.int32)
     uv = np.empty((n, 2), np.float32)
-    cast_rays(*index.kernel_args(), o, d, float(t_min), float(t_max), index.depth + 2, t, nrm, face, tile, uv)
+    fp0, spread = (float(x) for x in footprint)
+    if not (fp0 >= 0 and spread >= 0):
+        raise ParameterError(f"footprint: expected two non-negative numbers (w0, spread), got {footprint!r}")
+    cast_rays(*index.kernel_args(), o, d, float(t_min), float(t_max), index.depth + 2, fp0, spread,
+              index.mip_levels, t, nrm, face, tile, uv)
     pts = o + np.where(np.isfinite(t), t, np.nan)[:, None] * d
     return Hits(t, pts, nrm, face, tile, uv)

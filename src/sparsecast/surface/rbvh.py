@@ -158,7 +158,7 @@ class _Nodes:
 def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2", *, split: str = "sah",
                hybrid: bool = True, rays: str = "coherent", bins: int = 16, max_depth: int = 64,
                curvature_deg: float | None = None, cone_tolerance: float = 0.01,
-               overlap: float = 0.0) -> SurfaceIndex:
+               overlap: float = 0.0, mip_levels: int = 1) -> SurfaceIndex:
     """Build a rasterized BVH (hybrid by default) over a triangle mesh or a point cloud.
 
     Parameters
@@ -194,6 +194,9 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         2-3x faster, fewer silhouette errors): every leaf already holds whole
         triangles, so adjacent tiles meet edge to edge, and the dilated border
         closes the sub-texel gap between them.
+    mip_levels : int
+        Atlas levels, each half the resolution of the one before (1: none). Camera
+        rays pick the level whose texel matches their pixel footprint.
 
     Returns
     -------
@@ -210,6 +213,8 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         raise ParameterError(f"cone_tolerance: expected a share in [0, 0.5), got {cone_tolerance}")
     if not 0.0 <= overlap <= 0.5:
         raise ParameterError(f"overlap: expected a share of the node extent in [0, 0.5], got {overlap}")
+    if not 1 <= mip_levels <= 8:
+        raise ParameterError(f"mip_levels: expected 1..8, got {mip_levels}")
     if not 4 <= max_depth <= 256:
         raise ParameterError(f"max_depth: expected 4..256, got {max_depth}")
     r_cap = resolution_cap(q.rho, rays)
@@ -336,10 +341,12 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         t_start = np.concatenate([[0], np.cumsum(t_count)[:-1]])
         if is_mesh:
             atlas = build_atlas(np.concatenate(tile_normals), np.concatenate(tile_res), t_start, t_count, t_refs,
-                                tris=surface.triangles, faces=surface.faces, vnormals=surface.vertex_normals)
+                                tris=surface.triangles, faces=surface.faces, vnormals=surface.vertex_normals,
+                                levels=mip_levels)
         else:
             atlas = build_atlas(np.concatenate(tile_normals), np.concatenate(tile_res), t_start, t_count, t_refs,
-                                points=surface.points, pnormals=surface.normals, radii=np.asarray(surface.radii))
+                                points=surface.points, pnormals=surface.normals, radii=np.asarray(surface.radii),
+                                levels=mip_levels)
         node_child[t_nodes] = np.arange(len(t_nodes), dtype=np.int32)
         node_count[t_nodes] = TILE_LEAF
         node_bounds[t_nodes] = atlas.boxes
@@ -366,4 +373,5 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
              "refs_per_level": [c for _, c in level_stats]}
     return SurfaceIndex(
         kind="rbvh", source=surface, node_bounds=node_bounds, node_child=node_child, node_count=node_count,
-        tris=tris, tri_face=tri_ids, faces=faces, vnormals=vnormals, depth=depth, build=build, **atlas_arrays)
+        tris=tris, tri_face=tri_ids, faces=faces, vnormals=vnormals, depth=depth, build=build,
+        mip_levels=mip_levels if tile_nodes else 1, **atlas_arrays)

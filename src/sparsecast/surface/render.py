@@ -48,7 +48,8 @@ def cast_camera(index: SurfaceIndex, camera: Camera, width: int, height: int) ->
     tile = np.empty((height, width), np.int32)
     uv = np.empty((height, width, 2), np.float32)
     t0 = time.perf_counter()
-    cast_primary(*index.kernel_args(), params, width, height, index.depth + 2, t, nrm, face, tile, uv)
+    cast_primary(*index.kernel_args(), params, width, height, index.depth + 2, index.mip_levels,
+                 t, nrm, face, tile, uv)
     ms = (time.perf_counter() - t0) * 1e3
     return PixelHits(t, nrm, face, tile, uv, ms)
 
