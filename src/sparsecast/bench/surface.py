@@ -6,7 +6,7 @@ in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
 
 - ``phase="load"``: reading (and generating) the mesh;
 - ``phase="build"`` (Tables 1-2): the exact BVH and the RBVH at Q0-Q4 (SAH
-  splits) plus Q2 with median splits: build ms, nodes, tiles, texels, bytes of
+  splits) plus Q2 with median splits and Q2 with 3 mip levels: build ms, nodes, tiles, texels, bytes of
   nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
   triangles) from the same run;
 - ``phase="render"`` (Table 3, primary rays) and ``phase="render_diffuse"``
@@ -182,6 +182,10 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
                            quality="Q2", split="median")
     indices["rbvh-Q2-median"] = med
     _mem_ratio(med, bvh_bytes, record, name, "rbvh-Q2-median")
+    mip = build_and_record("rbvh-Q2-mip3", lambda: build_rbvh(mesh, "Q2", mip_levels=3), quality="Q2",
+                           split="sah", mip_levels=3)
+    indices["rbvh-Q2-mip3"] = mip
+    _mem_ratio(mip, bvh_bytes, record, name, "rbvh-Q2-mip3")
 
     # Primary rays: the exact image first (reference for PSNR, depth error, diffuse rays).
     ref_ms, ref_runs, ref = _primary(bvh, cam, width, height, repeat, warmup)
