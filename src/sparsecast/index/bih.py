@@ -39,7 +39,7 @@ parent, the field holds the right child's index, or ``i + 1`` for a single child
 Tree chunks: siblings are stored as an aligned pair (``field`` = the pair's even
 index, bit 0 set for a single child), and ``chunk_depth`` levels of pairs below a
 node are stored together (depth 2: a pair and its up to four children, 48 bytes,
-within one 64-byte cache line).
+less than a 64-byte cache line).
 """
 
 from __future__ import annotations
