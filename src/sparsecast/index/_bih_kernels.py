@@ -153,9 +153,11 @@ def _emit(node_i, node_f, node_box, node, parent, slot, kind, b, e, depth, p0, p
         node_box[node, a] = cur[_T + a]
 
 
-@njit(cache=True, inline="always")
-def _cut_box(cur, axis, lo_p, hi_p):
-    """Apply a single child's interval to the traversal box T of the task."""
+@njit(cache=True)
+def _emit_single(node_i, node_f, node_box, node, parent, slot, axis, b, e, depth, lo_p, hi_p, cur):
+    """Write a single-child node with interval ``[lo_p, hi_p]`` on ``axis`` and cut
+    the task's traversal box T down to it (the child continues the task)."""
+    _emit(node_i, node_f, node_box, node, parent, slot, axis, b, e, depth, lo_p, hi_p, cur)
     cur[_T + axis] = max(cur[_T + axis], lo_p)
     cur[_T + 3 + axis] = min(cur[_T + 3 + axis], hi_p)
 
@@ -245,8 +247,7 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
                         hi_p = math.inf
                     else:
                         lo_p = -math.inf
-                _emit(node_i, node_f, node_box, m, parent, slot, a, b, e, depth, lo_p, hi_p, cur)
-                _cut_box(cur, a, lo_p, hi_p)
+                _emit_single(node_i, node_f, node_box, m, parent, slot, a, b, e, depth, lo_p, hi_p, cur)
                 parent = m
                 m += 1
                 slot = 0
@@ -292,8 +293,7 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
                         lo_p = -math.inf
                         cut_lo = False
                 if cut_lo or cut_hi:
-                    _emit(node_i, node_f, node_box, m, parent, slot, axis, b, e, depth, lo_p, hi_p, cur)
-                    _cut_box(cur, axis, lo_p, hi_p)
+                    _emit_single(node_i, node_f, node_box, m, parent, slot, axis, b, e, depth, lo_p, hi_p, cur)
                     parent = m
                     m += 1
                     slot = 0
