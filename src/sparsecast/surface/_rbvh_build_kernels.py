@@ -21,8 +21,8 @@ from numba import njit, prange
 S_AREA, S_NX, S_NY, S_NZ = 0, 1, 2, 3
 S_LO, S_HI = 4, 7  # primitive-box bounds (3 each)
 S_CLO, S_CHI = 10, 13  # centroid bounds (3 each)
-S_MINCOS, S_CURVY, S_COMP_LO, S_COMP_HI, S_COMP_2, S_OUT_AREA = 16, 17, 18, 19, 20, 21
-N_STATS = 22
+S_CURVY, S_COMP_LO, S_COMP_HI, S_COMP_2, S_OUT_AREA = 16, 17, 18, 19, 20
+N_STATS = 21
 
 # Partition modes.
 SPLIT_DUP, SPLIT_PLANE, SPLIT_OBJECT, SPLIT_HALF = 0, 1, 2, 3
@@ -55,7 +55,8 @@ def face_components(faces, n_vertices):
 @njit(cache=True, parallel=True)
 def node_stats(refs, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcomp, cos_phi):
     """Per-node reductions: area, area-weighted normal sum, bounds, centroid bounds,
-    normal-cone cosine, curvy-corner sum, the component range and the area whose normals leave the cone of half-angle ``acos(cos_phi)``."""
+    curvy-corner sum, the component range, and the area whose normals leave the
+    cone of half-angle ``acos(cos_phi)`` around the mean normal."""
     n_nodes = start.shape[0]
     out = np.empty((n_nodes, N_STATS))
     for i in prange(n_nodes):
@@ -82,16 +83,13 @@ def node_stats(refs, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcom
             c_lo = min(c_lo, pcomp[p])
             c_hi = max(c_hi, pcomp[p])
         ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        mincos = -1.0
         out_area = a
         two = 1.0  # 1 when every primitive belongs to component c_lo or c_hi
         if ln > 0.0:
-            mincos = 1.0
             out_area = 0.0
             for r in range(s, e):
                 p = refs[r]
                 c = (pnorm[p, 0] * nx + pnorm[p, 1] * ny + pnorm[p, 2] * nz) / ln
-                mincos = min(mincos, c)
                 if c < cos_phi:
                     out_area += parea[p]
         for r in range(s, e):
@@ -105,7 +103,6 @@ def node_stats(refs, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcom
             out[i, S_HI + k] = hi[k]
             out[i, S_CLO + k] = clo[k]
             out[i, S_CHI + k] = chi[k]
-        out[i, S_MINCOS] = mincos
         out[i, S_CURVY] = curvy
         out[i, S_COMP_LO] = c_lo
         out[i, S_COMP_HI] = c_hi
