@@ -210,7 +210,7 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
         ms, runs, hits = _primary(idx, cam, width, height, repeat, warmup)
         img = shade(hits, cam, "shaded", depth_range)
         both = both_ref & np.isfinite(hits.t)
-        err = np.abs(hits.t - ref.t)[both] / diag * 100.0
+        err = np.abs(hits.t[both] - ref.t[both]) / diag * 100.0
         record(dataset=name, method=method, phase="render", ms=ms, ms_runs=runs, rays=rays,
                hits=int(np.isfinite(hits.t).sum()), mrays_s=rays / ms / 1e3, speedup=ref_ms / ms,
                psnr=_psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
