@@ -201,4 +201,32 @@ def tile_height_range(tile_rect, depth, pad):
     return out
 
 
-__all__ = ["rasterize_triangles", "splat_points", "dilate", "tile_height_range", "EMPTY"]
+
+
+@njit(cache=True, parallel=True)
+def triangle_tile_extents(frames, tile_start, tile_count, refs, tris):
+    """Per tile: bounds of its triangles in the tile frame ``(u, v, w)`` and in world space.
+
+    Returns ``(lo, hi, world_lo, world_hi)``, each ``(T, 3)``.
+    """
+    n = frames.shape[0]
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    wlo = np.full((n, 3), np.inf)
+    whi = np.full((n, 3), -np.inf)
+    for k in prange(n):
+        for q in range(tile_start[k], tile_start[k] + tile_count[k]):
+            f = refs[q]
+            for c in range(3):
+                x, y, z = tris[f, c, 0], tris[f, c, 1], tris[f, c, 2]
+                for a in range(3):
+                    p = frames[k, a, 0] * x + frames[k, a, 1] * y + frames[k, a, 2] * z
+                    lo[k, a] = min(lo[k, a], p)
+                    hi[k, a] = max(hi[k, a], p)
+                wlo[k, 0], whi[k, 0] = min(wlo[k, 0], x), max(whi[k, 0], x)
+                wlo[k, 1], whi[k, 1] = min(wlo[k, 1], y), max(whi[k, 1], y)
+                wlo[k, 2], whi[k, 2] = min(wlo[k, 2], z), max(whi[k, 2], z)
+    return lo, hi, wlo, whi
+
+
+__all__ = ["rasterize_triangles", "splat_points", "dilate", "tile_height_range", "triangle_tile_extents", "EMPTY"]

@@ -52,6 +52,35 @@ def face_components(faces, n_vertices):
     return out
 
 
+@njit(cache=True)
+def triangle_prims(tris, faces, face_normals, vertex_normals, cos_curved):
+    """Per triangle: box, box centre, and the share of its corners at curved vertices.
+
+    A vertex is curved when some adjacent face normal makes a cosine below
+    ``cos_curved`` with its (smooth) normal.
+    """
+    m = tris.shape[0]
+    pmin = np.empty((m, 3))
+    pmax = np.empty((m, 3))
+    vmin = np.ones(vertex_normals.shape[0])
+    for f in range(m):
+        for a in range(3):
+            pmin[f, a] = min(tris[f, 0, a], tris[f, 1, a], tris[f, 2, a])
+            pmax[f, a] = max(tris[f, 0, a], tris[f, 1, a], tris[f, 2, a])
+        for c in range(3):
+            v = faces[f, c]
+            cs = (vertex_normals[v, 0] * face_normals[f, 0] + vertex_normals[v, 1] * face_normals[f, 1]
+                  + vertex_normals[v, 2] * face_normals[f, 2])
+            vmin[v] = min(vmin[v], cs)
+    curvy = np.empty(m)
+    for f in range(m):
+        n = 0
+        for c in range(3):
+            n += vmin[faces[f, c]] < cos_curved
+        curvy[f] = n / 3.0
+    return pmin, pmax, 0.5 * (pmin + pmax), curvy
+
+
 @njit(cache=True, parallel=True)
 def node_stats(refs, start, count, pmin, pmax, pcent, pnorm, parea, pcurvy, pcomp, cos_phi):
     """Per-node reductions: area, area-weighted normal sum, bounds, centroid bounds,

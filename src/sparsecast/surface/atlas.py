@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._atlas_kernels import dilate, rasterize_triangles, splat_points, tile_height_range
+from ._atlas_kernels import dilate, rasterize_triangles, splat_points, tile_height_range, triangle_tile_extents
 from ._rbvh_kernels import EMPTY, EMPTY_TEST, NORMAL_SCALE
 
 __all__ = ["Atlas", "BORDER", "pack_tiles", "tile_frames", "build_atlas", "atlas_texels", "read_layer"]
@@ -131,23 +131,18 @@ def build_atlas(normals: np.ndarray, res: np.ndarray, tile_start: np.ndarray, ti
     """
     n_tiles = len(res)
     frames = tile_frames(np.asarray(normals, np.float64))
-    seg = np.repeat(np.arange(n_tiles), tile_count)
-    ref_frames = frames[seg]  # (n_refs, 3, 3)
-    if tris is not None:
-        corners = tris[refs]  # (n_refs, 3, 3)
-        proj = np.einsum("rak,rck->rca", ref_frames, corners)  # (n_refs, 3 corners, 3 axes)
-        lo_r, hi_r = proj.min(axis=1), proj.max(axis=1)
-        plo, phi = corners.min(axis=1), corners.max(axis=1)
-    else:
-        c = np.einsum("rak,rk->ra", ref_frames, points[refs])
-        rr = radii[refs][:, None]
-        lo_r, hi_r = c - rr, c + rr
-        plo, phi = points[refs] - rr, points[refs] + rr
     starts = np.asarray(tile_start, np.int64)
-    lo = _segment_reduce(lo_r, starts, np.minimum)
-    hi = _segment_reduce(hi_r, starts, np.maximum)
-    prim_lo = _segment_reduce(plo, starts, np.minimum)
-    prim_hi = _segment_reduce(phi, starts, np.maximum)
+    if tris is not None:
+        lo, hi, prim_lo, prim_hi = triangle_tile_extents(frames, starts, np.asarray(tile_count, np.int64),
+                                                         refs, tris)
+    else:
+        seg = np.repeat(np.arange(n_tiles), tile_count)
+        c = np.einsum("rak,rk->ra", frames[seg], points[refs])
+        rr = radii[refs][:, None]
+        lo = _segment_reduce(c - rr, starts, np.minimum)
+        hi = _segment_reduce(c + rr, starts, np.maximum)
+        prim_lo = _segment_reduce(points[refs] - rr, starts, np.minimum)
+        prim_hi = _segment_reduce(points[refs] + rr, starts, np.maximum)
     res0 = np.maximum(np.asarray(res, np.int64), MIN_RES)
     ext = hi[:, :2] - lo[:, :2]
     # Every level as a set of tiles of its own: same frames and primitives, coarser texels.

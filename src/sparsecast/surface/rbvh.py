@@ -108,20 +108,10 @@ class _Prims:
 
 
 def _mesh_prims(mesh: TriangleMesh, curvature_deg: float) -> _Prims:
-    tris = mesh.triangles
-    fn = mesh.face_normals
-    vn = mesh.vertex_normals
-    # Vertex curvature: the largest angle between its normal and an adjacent face's.
-    cos_corner = np.einsum("fck,fk->fc", vn[mesh.faces], fn)
-    order = np.argsort(mesh.faces.ravel(), kind="stable")
-    vids = mesh.faces.ravel()[order]
-    first = np.flatnonzero(np.r_[True, vids[1:] != vids[:-1]])
-    vmin = np.ones(len(mesh.vertices))
-    vmin[vids[first]] = np.minimum.reduceat(cos_corner.ravel()[order], first)
-    curvy = (vmin < math.cos(math.radians(curvature_deg)))[mesh.faces].sum(axis=1).astype(np.float64) / 3.0
-    lo, hi = tris.min(axis=1), tris.max(axis=1)
+    pmin, pmax, pcent, curvy = K.triangle_prims(mesh.triangles, mesh.faces, mesh.face_normals,
+                                                mesh.vertex_normals, math.cos(math.radians(curvature_deg)))
     comp = K.face_components(mesh.faces, len(mesh.vertices))
-    return _Prims(lo, hi, 0.5 * (lo + hi), fn, mesh.face_areas, curvy, comp)
+    return _Prims(pmin, pmax, pcent, mesh.face_normals, mesh.face_areas, curvy, comp)
 
 
 def _point_prims(pc: PointCloud) -> _Prims:
