@@ -76,7 +76,7 @@ def test_markdown_report_names_best_index_and_peers(tmp_path):
     assert "25.0 %" in row and "test cpu" in text
     assert "## Peers on the same cases" in text and "41.0 dB" in text and "`d_vtk.png`" in text
     assert "## Approximate indices" in text and "33.0 dB" in text
-    assert "yt is not installed" in text
+    assert "- peer `yt`: yt is not installed" in text
     assert "| `grid-pc` | 20.0 | 2.00 | classify 0.500 · split 1.50 | 4.0 KiB |" in text  # per-dataset table
     assert "![frame_times](figs/frame_times.png)" in text
 
@@ -143,6 +143,7 @@ def test_cli_suite_resumes_and_writes_report(monkeypatch, capsys, tmp_path, tiny
     assert len(renders) == 2 * 2 * 6  # methods x sizes x views (2 per axis)
     assert (tmp_path / "r.jsonl").exists() and (tmp_path / "f" / "frame_times.png").exists()
     report = (tmp_path / "B.md").read_text()
+    assert f"Written by `sparsecast {' '.join(args)}`" in report
     assert "## Summary" in report and "`grid-pc`" in report and "frame_times.png" in report
     code, out, err = run_cli(monkeypatch, capsys, *args)
     assert code == 0 and "resuming" in err

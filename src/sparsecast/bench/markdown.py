@@ -67,6 +67,7 @@ def markdown_report(
     *,
     title: str = "sparsecast benchmarks",
     suite: str | None = None,
+    command: str | None = None,
     figures: list[Path] | None = None,
     relative_to: Path | None = None,
 ) -> str:
@@ -83,7 +84,7 @@ def markdown_report(
     sizes = sorted({r.size for r in rows}, key=lambda s: int(s.split("x")[0]))
     views = max((r.views for r in rows if not r.peer), default=0)
     out += [
-        f"Written by `sparsecast bench{' --suite ' + suite if suite else ''}` on "
+        f"Written by `{command or 'sparsecast bench' + (' --suite ' + suite if suite else '')}` on "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.",
         "",
         f"**Machine:** {m.get('cpu', '?')}, {m.get('cores', '?')} cores "
@@ -264,7 +265,11 @@ def _skipped(records: list[Record]) -> list[str]:
     notes = [r for r in records if r.get("phase") == "skipped"]
     if not notes:
         return []
-    return ["## Skipped", ""] + [f"- {r.get('kind', '')} `{r['method']}`: {r.get('reason', '')}" for r in notes] + [""]
+    lines = []
+    for r in notes:
+        kind = f"{r['kind']} " if r.get("kind") else ""
+        lines.append(f"- {kind}`{r['method']}`: {r.get('reason', '')}")
+    return ["## Skipped", ""] + lines + [""]
 
 
 def write_markdown(text: str, path: str | os.PathLike) -> Path:
