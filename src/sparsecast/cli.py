@@ -292,7 +292,9 @@ def bench(
     if report is not None:
         from .bench.markdown import markdown_report, write_markdown
 
-        text = markdown_report(records, suite=plan.name, figures=figures, relative_to=report.parent)
+        command = "sparsecast " + " ".join(sys.argv[1:])
+        text = markdown_report(records, suite=plan.name, command=command, figures=figures,
+                               relative_to=report.parent)
         _out.print(f"wrote {write_markdown(text, report)}")
     if interrupted:
         _err.print(f"interrupted: {progress.done_count} of {progress.total} cases are kept in "
