@@ -386,7 +386,7 @@ class _TfCases:
     """Every method and peer on one (dataset, TF), sharing the naive reference images."""
 
     def __init__(self, run: _Run, ds_name: str, vol: Volume, tf_name: str, tf: TransferFunction) -> None:
-        self.run_, self.ds, self.vol, self.tf_name, self.tf = run, ds_name, vol, tf_name, tf
+        self.runner, self.ds, self.vol, self.tf_name, self.tf = run, ds_name, vol, tf_name, tf
         self.cfg = run.cfg
         self.dt = self.cfg.dt if self.cfg.dt is not None else 0.5 * float(vol.spacing.min())
         # (width, height, view) -> naive premultiplied RGB (float16 halves the memory of
@@ -405,7 +405,7 @@ class _TfCases:
         return self._reference[key]
 
     def run(self) -> None:
-        run, ds, tf_name = self.run_, self.ds, self.tf_name
+        run, ds, tf_name = self.runner, self.ds, self.tf_name
         store = run.store
         if not store.done(dataset=ds, tf=tf_name, phase="tf_classify"):
             bricks = self.vol.brick_stats(8)
@@ -420,7 +420,7 @@ class _TfCases:
                 self.peer(peer, module)
 
     def method(self, spec: str, method: str, opts: dict[str, Any]) -> None:
-        run, cfg, ds, tf_name, vol, tf = self.run_, self.cfg, self.ds, self.tf_name, self.vol, self.tf
+        run, cfg, ds, tf_name, vol, tf = self.runner, self.cfg, self.ds, self.tf_name, self.vol, self.tf
         say, store = run.progress.say, run.store
         say(f"{ds}/{tf_name}: {spec} build")
         if not store.done(dataset=ds, tf=tf_name, method=spec, phase="build_cold"):
@@ -458,7 +458,7 @@ class _TfCases:
                            exact=bool(index.exact), **extra)
 
     def peer(self, peer: str, module: Any) -> None:
-        run, cfg, ds, tf_name = self.run_, self.cfg, self.ds, self.tf_name
+        run, cfg, ds, tf_name = self.runner, self.cfg, self.ds, self.tf_name
         run.progress.say(f"{ds}/{tf_name}: {peer} setup")
         try:
             scene = module.Scene(self.vol, self.tf, self.dt)
