@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import pytest
 from PIL import Image as PILImage
@@ -13,19 +12,8 @@ from sparsecast.bench.harness import add_ratios
 from sparsecast.bench.markdown import markdown_report
 from sparsecast.bench.plots import write_plots
 from sparsecast.bench.report import load_records
-from sparsecast.cli import main
 from sparsecast.errors import FileFormatError
-
-
-def run_cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["sparsecast", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
+from test_cli import run_cli  # the CLI tests' in-process runner (tests/ is on sys.path)
 
 
 def _render(ds, method, ms, *, tf="default", view="v1", size=512, samples=1000, oracle=100, **kw):
