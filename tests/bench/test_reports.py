@@ -72,11 +72,14 @@ def test_markdown_report_names_best_index_and_peers(tmp_path):
 def test_compare_ratios_and_counts():
     old, new = _run(), _run(scale=2.0)
     new = [r for r in new if r.get("view") != "v2"] + [_render("e", "naive", 1.0)]
+    section = {"dataset": "mesh", "method": "rbvh", "phase": "render", "view": [30, 20], "ms": 2.0, "section": "s"}
+    old, new = old + [section], new + [{**section, "ms": 3.0}]
     cases, only_old, only_new = compare_records(old, new)
     ratio = {c.label(): c.ratio for c in cases}
     assert ratio["d default naive render 512x512 v1"] == pytest.approx(2.0)
     assert ratio["d default lbvh render 512x512 v1"] == pytest.approx(1.0)
     assert ratio["d default grid-pc rebuild"] == pytest.approx(1.0)
+    assert ratio['[s] mesh rbvh render [30, 20]'] == pytest.approx(1.5)
     assert only_old == 4 and only_new == 1  # the v2 renders; the new dataset
     table = format_comparison(cases, only_old, only_new)
     assert "4 only in old" in table.caption and "slower" in table.caption

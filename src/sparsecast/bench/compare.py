@@ -8,6 +8,7 @@ threshold are flagged.
 
 from __future__ import annotations
 
+import json
 import math
 import statistics
 from dataclasses import dataclass
@@ -38,7 +39,9 @@ class CaseRatio:
 
 
 def _key(r: dict[str, Any]) -> tuple[Any, ...]:
-    return case_key(r) + (r.get("table_size"), r.get("section"))
+    key = case_key(r) + (r.get("table_size"), r.get("section"))
+    # Sections may put lists in these fields (a view as angles, a size as a pair).
+    return tuple(json.dumps(v) if isinstance(v, (list, dict)) else v for v in key)
 
 
 def compare_records(old: list[dict[str, Any]], new: list[dict[str, Any]]) -> tuple[list[CaseRatio], int, int]:
