@@ -19,7 +19,6 @@ build ms, nodes, bytes and frame ms of :func:`render_particles`.
 
 from __future__ import annotations
 
-import math
 import statistics
 import time
 from collections.abc import Callable
@@ -34,6 +33,7 @@ from ..elements import voxel_elements
 from ..renderers import render
 from ..renderers.particles import render_particles
 from .datasets import DATASETS
+from .images import psnr
 from .timing import median_ms
 
 __all__ = ["run", "DEFAULT_DATASETS", "RESAMPLING", "MAX_ELEMENTS", "PARTICLE_COUNTS"]
@@ -44,11 +44,6 @@ RESAMPLING = (1.0, 1.5, 2.0)
 MAX_ELEMENTS = 8_000_000
 PARTICLE_COUNTS = (100_000, 1_000_000)
 VIEW = (30.0, 20.0)
-
-
-def _psnr(img: np.ndarray, ref: np.ndarray) -> float:
-    mse = float(np.mean((img[..., :3].astype(np.float64) - ref[..., :3]) ** 2))
-    return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)
 
 
 def _frame(render_once: Callable, repeat: int, warmup: int) -> tuple[float, float, object]:
@@ -127,7 +122,7 @@ def _volume_tables(name, vol, make_tf, width, height, repeat, warmup, record) ->
             ms, wall, img = _frame(lambda: render(vol, tf, cam, width, height, index=idx), repeat, warmup)
             record(method=f"bih:mode={mode},{tag}", phase="render", ms=ms, wall_ms=wall,
                    samples=img.stats["samples"], speedup=naive_ms / ms, ess_over_mode=ess_ms / ms,
-                   psnr=_psnr(img.rgba, ref_rgba), nodes=idx.tree.n_nodes, bytes=idx.nbytes, **common)
+                   psnr=psnr(img.rgba, ref_rgba), nodes=idx.tree.n_nodes, bytes=idx.nbytes, **common)
         del el
 
 

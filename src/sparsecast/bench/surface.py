@@ -21,7 +21,6 @@ in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
@@ -36,6 +35,7 @@ from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
 from ..surface.render import cast_camera, shade
 from ..surface.secondary import cosine_directions, facing
 from .datasets import find_shared_data
+from .images import psnr
 from .timing import median_ms
 
 __all__ = ["run", "MESHES", "DEFAULT_DATASETS", "QUALITIES"]
@@ -96,11 +96,6 @@ def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: 
     _, _, hits = median_ms(once, repeat, warmup)
     runs = kernel_ms[warmup:]
     return float(np.median(runs)), runs, hits
-
-
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a[..., :3].astype(np.float64) - b[..., :3]) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(1.0 / mse)
 
 
 def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, repeat: int, warmup: int,
@@ -213,7 +208,7 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
         err = np.abs(hits.t[both] - ref.t[both]) / diag * 100.0
         record(dataset=name, method=method, phase="render", ms=ms, ms_runs=runs, rays=rays,
                hits=int(np.isfinite(hits.t).sum()), mrays_s=rays / ms / 1e3, speedup=ref_ms / ms,
-               psnr=_psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
+               psnr=psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
                depth_err_max_pct=float(err.max()) if err.size else None,
                hit_mismatch_pct=float(np.mean(np.isfinite(hits.t) != both_ref) * 100.0),
                width=width, height=height, view=list(VIEW))
