@@ -3,26 +3,14 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 import pytest
 from PIL import Image as PILImage
 
 import sparsecast as sc
-from sparsecast.cli import main
+from cli_runner import run_cli
 
-
-def run_cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    """Run ``sparsecast ARGS`` in-process through the real entry point."""
-    monkeypatch.setattr(sys, "argv", ["sparsecast", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:  # typer/click exit, or our error handler
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ from sparsecast.bench.markdown import markdown_report
 from sparsecast.bench.plots import write_plots
 from sparsecast.bench.report import load_records
 from sparsecast.errors import FileFormatError
-from test_cli import run_cli  # the CLI tests' in-process runner (tests/ is on sys.path)
+from cli_runner import run_cli
 
 
 def _render(ds, method, ms, *, tf="default", view="v1", size=512, samples=1000, oracle=100, **kw):

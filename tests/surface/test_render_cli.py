@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import sys
 
 import numpy as np
 import pytest
 import trimesh
 from PIL import Image as PILImage
 
+from cli_runner import run_cli
 from sparsecast import Camera
-from sparsecast.cli import main
 from sparsecast.errors import ParameterError
 from sparsecast.surface import build_bvh, build_rbvh, render_surface
 from sparsecast.surface.mesh import icosphere
@@ -49,16 +48,6 @@ def test_bad_render_parameters(sphere):
     with pytest.raises(ParameterError, match="camera"):
         render_surface(index, "cam", 8, 8)
 
-
-def run_cli(monkeypatch, capsys, *args: str):
-    monkeypatch.setattr(sys, "argv", ["sparsecast", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.mark.parametrize("index", ["rbvh", "bvh"])
