@@ -52,6 +52,21 @@ def test_render_file_matches_api(monkeypatch, capsys, tmp_path, small_volume_fil
     np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
 
 
+
+@pytest.mark.parametrize("spec, name, options", [
+    ("bih:mode=single-sample", "bih", {"mode": "single-sample"}),
+    ("grid-pc:cell=8", "grid-pc", {"cell": 8}),
+])
+def test_render_index_options_match_api(monkeypatch, capsys, tmp_path, small_volume_file, spec, name, options):
+    arr = tmp_path / "img.npy"
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "20x16",
+                           "--index", spec, "-o", str(tmp_path / "img.png"), "--array", str(arr))
+    assert code == 0, err
+    vol = sc.load_volume(small_volume_file)
+    tf = sc.TransferFunction.preset("viridis", vol.value_range)
+    ref = sc.render(vol, tf, sc.Camera.orbit(vol, 30, 20), 20, 16, background="black", index=name, **options)
+    np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
+
 @pytest.mark.parametrize(
     "args, names",
     [
@@ -60,6 +75,8 @@ def test_render_file_matches_api(monkeypatch, capsys, tmp_path, small_volume_fil
         (["render", "--size", "100000x100000"], "width"),
         (["render", "--tf", "no-such-preset", "--size", "8x8"], "preset"),
         (["render", "--index", "no-such-index", "--size", "8x8"], "index"),
+        (["render", "--index", "bih:mode", "--size", "8x8"], "bih:mode"),
+        (["render", "--index", "bih:mode=sideways", "--size", "8x8"], "mode"),
         (["render", "--dt", "-1", "--size", "8x8"], "dt"),
         (["render", "--background", "mauve", "--size", "8x8"], "background"),
         (["render", "does-not-exist.nrrd"], "does-not-exist.nrrd"),

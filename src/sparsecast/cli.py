@@ -104,7 +104,7 @@ def render(
     zoom: Annotated[float, typer.Option(help="Magnification (>1 zooms in).")] = 1.0,
     size: Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")] = "512x512",
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
-    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`).")] = "naive",
+    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8.")] = "naive",
     cell: Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")] = None,
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
@@ -129,8 +129,12 @@ def render(
     bg: str | list[float] = background
     if "," in background:
         bg = list(_parse_pair_n(background, "--background"))
-    index_options = {} if cell is None else {"cell": cell}
-    img = do_render(vol, tfn, cam, width, height, dt=dt, index=index, ert=ert, shading=shade,
+    from .bench.harness import parse_method
+
+    index_name, index_options = parse_method(index)
+    if cell is not None:
+        index_options["cell"] = cell
+    img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
                     background=bg, **index_options)
     img.save(output)
     if array is not None:
