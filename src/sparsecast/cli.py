@@ -259,7 +259,10 @@ def bench(
     _check_bench_names(cfg)
     for m in cfg.methods:
         parse_method(m)  # validates names and options up front
-    out_dir = Path("bench-results") / plan.name if suite else None
+    # A suite's report, figures and images go beside its records (default bench-results/<suite>/).
+    out_dir = None
+    if suite:
+        out_dir = json_path.parent if json_path is not None else Path("bench-results") / plan.name
     if json_path is None:
         json_path = out_dir / "records.json" if out_dir else Path("bench-results") / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
     if out_dir is not None:

@@ -133,6 +133,7 @@ def test_cli_suite_resumes_and_writes_report(monkeypatch, capsys, tmp_path, tiny
     renders = [r for r in records if r["phase"] == "render"]
     assert len(renders) == 2 * 2 * 6  # methods x sizes x views (2 per axis)
     assert (tmp_path / "r.jsonl").exists() and (tmp_path / "f" / "frame_times.png").exists()
+    assert list((tmp_path / "images").glob("*.png"))  # images beside the records, not in the cwd
     report = (tmp_path / "B.md").read_text()
     assert f"Written by `sparsecast {' '.join(args)}`" in report
     assert "## Summary" in report and "`grid-pc`" in report and "frame_times.png" in report
