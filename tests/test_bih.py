@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 import sparsecast as sc
 from sparsecast.elements import Elements, voxel_elements
 from sparsecast.errors import ParameterError
-from sparsecast.index import _bih_kernels as K
+from sparsecast.index.bih import kernels as K
 from sparsecast.index.bih import BIH, build_bih
 from synthetic import sparse_volume
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import sparsecast as sc
 from sparsecast.errors import ParameterError
-from sparsecast.index import _kdtree_kernels as K
+from sparsecast.index.kdtree import kernels as K
 from sparsecast.index.kdtree import CellOccupancy
 
 from test_ess_exactness import sparse_volume

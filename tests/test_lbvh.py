@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import sparsecast as sc
 from synthetic import sparse_volume
 from sparsecast.errors import ParameterError
-from sparsecast.index import _lbvh_kernels as K
+from sparsecast.index.lbvh import construct as K
 from sparsecast.kernels.classify import _classify_parallel, _classify_serial
 from sparsecast.index.lbvh import LBVH, brick_grid_shape, vote_bricks, vote_voxels
 

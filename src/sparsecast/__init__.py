@@ -21,9 +21,10 @@ from .errors import (
 )
 from .index import SpatialIndex, available_indices, build_index
 from .io import load_volume, save_volume
-from .renderers import Image, render
+from .image import Image
+from .render import render
 from .io.particles import load_particles
-from .renderers.particles import render_particles
+from .render.particles import render_particles
 from .transfer import PRESETS, TransferFunction
 from .volume import BrickStats, Volume
 

@@ -117,7 +117,7 @@ def render(
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
     from .camera import Camera
-    from .renderers import render as do_render
+    from .render import render as do_render
 
     width, height = _parse_size(size)
     t0 = time.perf_counter()

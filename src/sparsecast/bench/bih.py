@@ -30,8 +30,8 @@ from ..datasets import nbody_particles
 from ..index import build_index
 from ..index.bih import ParticleBIH, build_bih
 from ..elements import voxel_elements
-from ..renderers import render
-from ..renderers.particles import render_particles
+from ..render import render
+from ..render.particles import render_particles
 from .datasets import DATASETS
 from .images import psnr
 from .timing import median_ms

@@ -23,7 +23,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import ParameterError
 from ..index import available_indices, build_index
-from ..renderers import render
+from ..render import render
 from ..transfer import TransferFunction
 from ..volume import Volume
 from .datasets import DATASETS

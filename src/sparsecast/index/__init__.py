@@ -1,15 +1,18 @@
-"""Spatial indices for empty-space skipping, one module each.
+"""Spatial indices for empty-space skipping, one package each.
 
-Importing this package registers every index; ``build_index(volume, tf, name)``
-builds one by name.
+Each package owns its build (``build.py`` and its kernels) and its traversal
+(``traversal.py``: a record type with the interval-iterator overloads of
+:mod:`.interval`). Importing this package registers every index;
+``build_index(volume, tf, name)`` builds one by name.
 """
 
-from .base import SpatialIndex
+from .base import SpatialIndex, View
 from .registry import available_indices, build_index, register_index
-from . import grid as _grid  # noqa: F401  (registers "grid-mm", "grid-pc")
 from . import naive as _naive  # noqa: F401  (registers "naive")
-from . import hybrid as _hybrid, kdtree as _kdtree  # noqa: F401  (kdtree-shallow/-deep, hybrid-pc/-mm)
+from . import grid as _grid  # noqa: F401  (registers "grid-mm", "grid-pc")
+from . import kdtree as _kdtree  # noqa: F401  (kdtree-shallow/-deep)
+from . import hybrid as _hybrid  # noqa: F401  (hybrid-pc/-mm)
 from . import lbvh as _lbvh  # noqa: F401  (registers "lbvh")
 from . import bih as _bih  # noqa: F401  (registers "bih")
 
-__all__ = ["SpatialIndex", "available_indices", "build_index", "register_index"]
+__all__ = ["SpatialIndex", "View", "available_indices", "build_index", "register_index"]

@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
 
 from ..transfer import TransferFunction
 from ..volume import Volume
 
-__all__ = ["SpatialIndex"]
+__all__ = ["SpatialIndex", "View"]
+
+
+class View(NamedTuple):
+    """What an index may need of the camera to prepare a frame's traversal record.
+
+    Attributes
+    ----------
+    eye : (3,) float64
+        Eye position in index space (perspective cameras).
+    direction : (3,) float64
+        View direction in index space (not normalised; orthographic cameras).
+    perspective : bool
+    """
+
+    eye: np.ndarray
+    direction: np.ndarray
+    perspective: bool
 
 
 class SpatialIndex:
@@ -18,6 +37,10 @@ class SpatialIndex:
     memory in ``self.nbytes``. A renderer reads an index only through the arrays
     its class documents; a TF change means building a new index (per-volume
     precomputation such as :meth:`Volume.brick_stats` is cached on the volume).
+
+    The DVR driver reaches an index only through :meth:`traversal_record`: a
+    ``NamedTuple`` of arrays whose class has ``start_ray`` / ``next_interval``
+    overloads (see :mod:`sparsecast.index.interval`).
     """
 
     #: name accepted by ``build_index`` / ``render(index=...)``
@@ -30,6 +53,14 @@ class SpatialIndex:
         self.tf = tf
         self.build_phases: dict[str, float] = {}
         self.nbytes: int = 0
+
+    def traversal_record(self, view: View) -> tuple:
+        """The record the driver traverses for one frame seen from ``view``.
+
+        Most indices return the same record every frame; view-dependent ones
+        (a leaf list sorted front to back) build it here. Never mutates the index.
+        """
+        raise NotImplementedError(f"{type(self).__name__} has no traversal record")
 
     @property
     def build_ms(self) -> float:

@@ -1,8 +1,8 @@
 """Marching one run of lattice samples: the inner loop every DVR renderer shares.
 
-The naive marcher calls :func:`march_segment` once per ray over the whole box;
-empty-space-skipping renderers call it once per non-empty segment their index
-yields. Because all of them go through this function with the same global
+The DVR driver (:mod:`sparsecast.render.driver`) calls :func:`march_interval`
+once per run of touching non-empty intervals that an index yields (once per ray
+for the naive index). Because all of them go through this function with the same global
 lattice indices ``k``, they produce the same floats wherever they take the same
 samples, and skipping a sample whose opacity is zero changes nothing.
 """
@@ -109,22 +109,25 @@ def march_interval(
     flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
     wdx, wdy, wdz, inv_spacing,
-    dt, t0, t1, k_next,
+    dt, t0, t1, k_next, k_max,
     acc_r, acc_g, acc_b, acc_a,
     ert, shading,
 ):
-    """Composite the lattice samples with ``t0 <= k * dt <= t1`` and ``k >= k_next``.
+    """Composite the lattice samples with ``t0 <= k * dt <= t1`` and ``k_next <= k <= k_max``.
 
     The building block of every empty-space-skipping renderer: walk the non-empty
     regions (cells, leaves, bricks) front to back and call this for each region's
     ray interval, passing the returned ``k_next`` on. ``k_next`` makes a sample that
     lands exactly on a shared face count once; regions must not overlap otherwise.
     Arguments and returns are those of :func:`march_segment`, with ``k_next``
-    (the first lattice index not yet visited) in place of ``k_end + 1``.
+    (the first lattice index not yet visited) in place of ``k_end + 1``, and
+    ``k_max`` the last lattice index the driver's clip admits.
     """
     k0, k1 = lattice_range(t0, t1, dt)
     if k0 < k_next:
         k0 = k_next
+    if k1 > k_max:
+        k1 = k_max
     if k0 > k1:
         return acc_r, acc_g, acc_b, acc_a, k_next, 0, 0
     return march_segment(

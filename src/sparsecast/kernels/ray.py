@@ -1,4 +1,9 @@
-"""Ray/box clipping and the global sampling lattice ``t_k = k * dt``."""
+"""Ray/slab clipping and the global sampling lattice ``t_k = k * dt``.
+
+One slab routine (:func:`slab`) serves every box test of the volume renderers:
+the driver's clip, each index's node and leaf boxes. Using the same arithmetic
+everywhere is what makes two indices agree bit for bit on a shared face.
+"""
 
 from __future__ import annotations
 
@@ -7,24 +12,41 @@ import math
 from numba import njit
 
 
-@njit(cache=True)
-def _slab(o, d, lo, hi, tmin, tmax):
-    """Intersect ``[tmin, tmax]`` with one slab ``lo <= o + t d <= hi``.
+@njit(cache=True, inline="always")
+def slab_ordered(o, inv, flat, near, far, t0, t1):
+    """Restrict ``[t0, t1]`` to one slab whose planes are given near plane first.
 
-    Axis-parallel rays (``d == 0``) are handled explicitly rather than through
-    ``1/0 = inf``: with ``o`` exactly on a slab plane the IEEE route gives
-    ``0 * inf = NaN``, which would silently drop the ray.
+    ``inv = 1 / d`` (any value when ``flat``); ``near``/``far`` are the slab planes
+    ordered by the ray's direction (``lo, hi`` for ``d >= 0``, ``hi, lo`` otherwise),
+    so no swap is needed: callers that precompute the order per ray (the LBVH)
+    save a branch per box.
+
+    Axis-parallel rays (``flat``, i.e. ``d == 0``) are handled explicitly rather
+    than through ``1/0 = inf``: with ``o`` exactly on a plane the IEEE route gives
+    ``0 * inf = NaN``, which would silently drop the ray. Their planes come in
+    ``lo, hi`` order.
     """
-    if d == 0.0:
-        if o < lo or o > hi:
+    if flat:
+        if o < near or o > far:
             return 1.0, 0.0  # empty interval
-        return tmin, tmax
-    inv = 1.0 / d
-    t0 = (lo - o) * inv
-    t1 = (hi - o) * inv
-    if t0 > t1:
-        t0, t1 = t1, t0
-    return max(tmin, t0), min(tmax, t1)
+        return t0, t1
+    return max(t0, (near - o) * inv), min(t1, (far - o) * inv)
+
+
+@njit(cache=True, inline="always")
+def slab(o, inv, flat, lo, hi, t0, t1):
+    """Restrict ``[t0, t1]`` to the slab ``lo <= o + t d <= hi`` (``inv = 1 / d``)."""
+    if inv < 0.0 and not flat:
+        return slab_ordered(o, inv, flat, hi, lo, t0, t1)
+    return slab_ordered(o, inv, flat, lo, hi, t0, t1)
+
+
+@njit(cache=True, inline="always")
+def inverse(d):
+    """``(1 / d, d == 0)``: the per-axis values :func:`slab` takes."""
+    if d == 0.0:
+        return 0.0, True
+    return 1.0 / d, False
 
 
 @njit(cache=True)
@@ -34,9 +56,12 @@ def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
     The interval is empty (``t_near > t_far``) when the ray misses. Boxes may be
     flat (``lo == hi`` on an axis): a ray in that plane still gets an interval.
     """
-    tn, tf = _slab(ox, dx, bx0, bx1, -math.inf, math.inf)
-    tn, tf = _slab(oy, dy, by0, by1, tn, tf)
-    tn, tf = _slab(oz, dz, bz0, bz1, tn, tf)
+    ix, fx = inverse(dx)
+    iy, fy = inverse(dy)
+    iz, fz = inverse(dz)
+    tn, tf = slab(ox, ix, fx, bx0, bx1, -math.inf, math.inf)
+    tn, tf = slab(oy, iy, fy, by0, by1, tn, tf)
+    tn, tf = slab(oz, iz, fz, bz0, bz1, tn, tf)
     return tn, tf
 
 
@@ -54,3 +79,88 @@ def lattice_range(t_near, t_far, dt):
     k0 = math.ceil(t_near / dt)
     k1 = math.floor(t_far / dt)
     return k0, k1
+
+
+@njit(cache=True, inline="always")
+def _k_from_near(t, dt, open_face):
+    """Smallest ``k`` a near face at ``t`` admits (``t > 0``): ``k dt >= t``, or ``>`` if open."""
+    q = t / dt
+    if open_face:
+        return int(math.floor(q)) + 1
+    return int(math.ceil(q))
+
+
+@njit(cache=True, inline="always")
+def _k_from_far(t, dt, open_face):
+    """Largest ``k`` a far face at ``t`` admits (``t >= 0``): ``k dt <= t``, or ``<`` if open."""
+    q = t / dt
+    if open_face:
+        return int(math.ceil(q)) - 1
+    return int(math.floor(q))
+
+
+@njit(cache=True)
+def clip_lattice(o, d, lo, hi, open_lo, open_hi, dt):
+    """Lattice samples of a ray inside a box whose faces may be half-open.
+
+    Parameters
+    ----------
+    o, d : tuple of 3 floats
+        Index-space ray origin and direction.
+    lo, hi : (3,) float64
+        Box corners (x, y, z).
+    open_lo, open_hi : (3,) bool
+        Faces that do not contain their plane: a sample exactly on an open face
+        is outside. Two boxes that share a face, one with it open, the other with
+        it closed, therefore never both take a sample on it (each decides from the
+        same ``(plane - o) / d``, with complementary rules).
+    dt : float
+        Lattice step.
+
+    Returns
+    -------
+    k_lo, k_hi : int
+        Inclusive range of lattice indices inside the box (``k_lo > k_hi``: none).
+        ``k >= 0`` always (no sample behind the eye).
+    t_lo, t_hi : float
+        The ray's interval in the closed box, ``t_lo >= 0``.
+
+    Notes
+    -----
+    Each face bounds ``k`` on its own and the bounds are intersected. With every
+    face closed this equals ``lattice_range`` of the box's ``clip_box`` interval:
+    ``ceil`` and ``floor`` are monotone, so the bound of the limiting face is the
+    bound of the interval.
+    """
+    t_lo = 0.0
+    t_hi = math.inf
+    for a in range(3):
+        inv, flat = inverse(d[a])
+        if flat:
+            if o[a] < lo[a] or o[a] > hi[a] or (open_lo[a] and o[a] == lo[a]) or (open_hi[a] and o[a] == hi[a]):
+                return 1, 0, 1.0, 0.0
+        else:
+            t_lo, t_hi = slab(o[a], inv, flat, lo[a], hi[a], t_lo, t_hi)
+    if t_lo > t_hi:
+        return 1, 0, t_lo, t_hi
+    k_lo = _k_from_near(t_lo, dt, False) if t_lo > 0.0 else 0
+    k_hi = _k_from_far(t_hi, dt, False)
+    for a in range(3):
+        inv, flat = inverse(d[a])
+        if flat or not (open_lo[a] or open_hi[a]):
+            continue
+        t_a = (lo[a] - o[a]) * inv
+        t_b = (hi[a] - o[a]) * inv
+        o_a = open_lo[a]
+        o_b = open_hi[a]
+        if inv < 0.0:
+            t_a, t_b = t_b, t_a
+            o_a, o_b = o_b, o_a
+        # A face more than one step outside the interval cannot tighten its
+        # bound (ceil / floor are monotone); skipping it also keeps ``int()``
+        # away from the huge t of nearly parallel axes.
+        if o_a and t_a >= 0.0 and t_a >= t_lo - dt:
+            k_lo = max(k_lo, _k_from_near(t_a, dt, True))
+        if o_b and t_b <= t_hi + dt:
+            k_hi = min(k_hi, _k_from_far(t_b, dt, True))
+    return k_lo, k_hi, t_lo, t_hi

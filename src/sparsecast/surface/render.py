@@ -9,7 +9,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import ParameterError
-from ..renderers.image import Image
+from ..image import Image
 from ._bvh_kernels import cast_primary
 from .index import SurfaceIndex
 from .secondary import facing
@@ -82,7 +82,7 @@ def shade(hits: PixelHits, camera: Camera, mode: str, depth_range: tuple[float, 
 
 def render_surface(index: SurfaceIndex, camera: Camera, width: int = 512, height: int = 512, *,
                    mode: str = "shaded", background=(0.0, 0.0, 0.0, 1.0)) -> Image:
-    """Ray cast ``index`` from ``camera`` into an :class:`~sparsecast.renderers.image.Image`.
+    """Ray cast ``index`` from ``camera`` into an :class:`~sparsecast.image.Image`.
 
     Parameters
     ----------

@@ -31,7 +31,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import SparsecastError
 from ..index import available_indices, build_index
-from ..renderers import render
+from ..render import render
 from ..transfer import PRESETS, TransferFunction
 from ..volume import Volume
 from .messages import (

@@ -21,13 +21,13 @@ from numba import njit, prange
 from ..camera import Camera
 from ..elements import ParticleSet
 from ..errors import ParameterError
-from ..index._bih_traversal import next_leaf, push_root, set_ray, traversal_arrays
+from ..image import Image
+from ..index.bih import ParticleBIH
+from ..index.bih.traversal import next_leaf, push_root, set_ray, traversal_arrays
 from ..kernels.camera import primary_ray
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds, tile_count
-from ..index.bih import ParticleBIH
-from .dvr import _background_array, _check_size
-from .image import Image
+from .options import background_array, check_size
 
 __all__ = ["render_particles", "DEFAULT_KAPPA"]
 
@@ -148,7 +148,7 @@ def render_particles(
     """
     if not isinstance(camera, Camera):
         raise ParameterError(f"camera: expected a sparsecast.Camera, got {type(camera).__name__}")
-    width, height = _check_size(width, height)
+    width, height = check_size(width, height)
     for name, v, ok, want in (("radius_scale", radius_scale, lambda x: x > 0, "a positive number"),
                               ("kappa", kappa, lambda x: x >= 0, "a non-negative number"),
                               ("ert", ert, lambda x: 0 < x <= 1, "a number in (0, 1]")):
@@ -172,7 +172,7 @@ def render_particles(
     tests = np.empty((height, width), np.int32)
     args = (p.words, p.preorder, p.frame_lo, p.frame_step, p.root_box, p.depth, particles.centers,
             particles.radii, particles.colors, scale, grow, float(kappa))
-    bg = _background_array(background)
+    bg = background_array(background)
     t0 = time.perf_counter()
     particle_kernel(*args, camera.ray_params(1, 1), 1, 1, float(ert), bg, np.empty((1, 1, 4), np.float32),
                     np.empty((1, 1), np.int32))  # compile / load outside the timing

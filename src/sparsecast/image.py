@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..io.atomic import atomic_path
+from .errors import ParameterError
+from .io.atomic import atomic_path
 
 __all__ = ["Image"]
 

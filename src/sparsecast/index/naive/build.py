@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from .base import SpatialIndex
-from .registry import register_index
+from ..base import SpatialIndex, View
+from ..registry import register_index
+from .traversal import NaiveRecord
 
 
 @register_index
@@ -15,3 +16,6 @@ class NaiveIndex(SpatialIndex):
     def __init__(self, volume, tf) -> None:
         super().__init__(volume, tf)
         self.build_phases = {"build": 0.0}
+
+    def traversal_record(self, view: View) -> NaiveRecord:
+        return NaiveRecord()

@@ -22,11 +22,15 @@ import time
 
 import numpy as np
 
-from ..errors import ParameterError
-from .base import SpatialIndex
-from .registry import register_index
+from ...errors import ParameterError
+from ..base import SpatialIndex, View
+from ..registry import register_index
+from .traversal import GridRecord
 
 __all__ = ["MinMaxGrid", "PreclassifiedGrid"]
+
+#: stands in for the arrays a grid kind does not read (one record type for both kinds)
+_NO_MASK = np.zeros((1, 1, 1), np.uint8)
 
 #: cell sizes accepted (voxels per cell edge)
 CELL_SIZES = (4, 8, 16, 32, 64)
@@ -45,8 +49,8 @@ def _check_cell(cell) -> int:
 class _CellGrid(SpatialIndex):
     """Shared part: cell size and per-cell value ranges.
 
-    Arrays (read by :mod:`sparsecast.renderers.grid`)
-    --------------------------------------------------
+    Arrays (traversed by :mod:`.traversal`)
+    ---------------------------------------
     cell_min, cell_max : (ncz, ncy, ncx) float64
         Value range of each cell including the one-voxel apron.
     cell : int
@@ -76,6 +80,16 @@ class _CellGrid(SpatialIndex):
         s.update(cell=self.cell, cells=int(np.prod(self.shape)), occupancy=self.occupancy())
         return s
 
+    def grid_record(self, use_minmax: bool) -> GridRecord:
+        """The grid as the DDA reads it (also used inside hybrid-grid leaves)."""
+        ncz, ncy, ncx = self.shape
+        return GridRecord(
+            cell=float(self.cell), use_minmax=use_minmax,
+            occupied=_NO_MASK if use_minmax else self.occupied,
+            cell_min=self.cell_min, cell_max=self.cell_max, prefix=self.tf.prefix,
+            v_lo=float(self.tf.value_range[0]), scale=float(self.tf.scale), ncx=ncx, ncy=ncy, ncz=ncz,
+        )
+
 
 @register_index
 class MinMaxGrid(_CellGrid):
@@ -94,6 +108,9 @@ class MinMaxGrid(_CellGrid):
     def __init__(self, volume, tf, cell: int = 16) -> None:
         super().__init__(volume, tf, cell)
         self.nbytes = int(self.cell_min.nbytes + self.cell_max.nbytes)
+
+    def traversal_record(self, view: View) -> GridRecord:
+        return self.grid_record(use_minmax=True)
 
 
 @register_index
@@ -124,3 +141,6 @@ class PreclassifiedGrid(_CellGrid):
 
     def occupancy(self) -> float:
         return float(self.occupied.mean())
+
+    def traversal_record(self, view: View) -> GridRecord:
+        return self.grid_record(use_minmax=False)

@@ -51,11 +51,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..elements import Elements, brick_elements, check_unit, voxel_elements
-from ..errors import ParameterError
-from . import _bih_kernels as K
-from .base import SpatialIndex
-from .registry import register_index
+from ...elements import Elements, brick_elements, check_unit, voxel_elements
+from ...errors import ParameterError
+from ..base import SpatialIndex, View
+from ..registry import register_index
+from . import kernels as K
+from .integrate import MODE_MULTI, MODE_SINGLE
+from .traversal import BihApproxRecord, BihRecord, decode_inner
 
 __all__ = ["BIH", "BIHTree", "PackedBIH", "ParticleBIH", "build_bih", "MODES", "VARIANTS", "LAYOUTS"]
 
@@ -254,6 +256,12 @@ class PackedBIH:
     def nbytes(self) -> int:
         return int(self.nodes.nbytes)
 
+    def record(self) -> BihRecord:
+        """The arrays the traversal reads (:mod:`.traversal`)."""
+        return BihRecord(self.words, self.preorder, np.ascontiguousarray(self.frame_lo, np.float64),
+                         np.ascontiguousarray(self.frame_step, np.float64),
+                         np.ascontiguousarray(self.root_box, np.float64), int(self.depth))
+
     @property
     def preorder(self) -> bool:
         return self.layout == "preorder"
@@ -266,8 +274,6 @@ class PackedBIH:
         0x0000 / 0xFFFF for an open side), ``density`` (14-bit codes), ``grad``
         (16-bit codes), ``first``, ``count`` (particle leaves). For tests and tools.
         """
-        from ._bih_traversal import decode_inner
-
         w = self.words
         m = self.n_nodes
         kind = np.zeros(m, np.int64)
@@ -466,6 +472,14 @@ class BIH(SpatialIndex):
         v_lo, v_hi = (float(x) for x in volume.value_range)
         self.v_lo = v_lo
         self.v_span = v_hi - v_lo if v_hi > v_lo else 1.0
+
+    def traversal_record(self, view: View) -> BihRecord | BihApproxRecord:
+        p = self.packed
+        tree = p.record()
+        if self.mode == "ess":
+            return tree
+        mode = MODE_SINGLE if self.mode == "single-sample" else MODE_MULTI
+        return BihApproxRecord(tree, mode, float(p.grad_scale), self.v_lo, self.v_span)
 
     def stats(self) -> dict:
         s = super().stats()

@@ -18,8 +18,8 @@ construction fast enough to redo on every TF change with summed-volume tables
 root's volume and a smaller summed volume); ``kdtree-deep`` splits down to leaves
 of ``min_leaf`` (8) cells on the split axis.
 
-Arrays (read by :mod:`sparsecast.renderers.kdtree` and ``.hybrid``)
--------------------------------------------------------------------
+Arrays (traversed by :mod:`.traversal`, and by the hybrid grids)
+----------------------------------------------------------------
 node_box : (n, 6) int32
     Tight box ``(x0, y0, z0, x1, y1, z1)`` of each node in cells, half-open; cell
     ``c`` spans index coordinates ``[c, c + 1]``, so the node covers the
@@ -45,10 +45,11 @@ import time
 
 import numpy as np
 
-from ..errors import ParameterError
-from . import _kdtree_kernels as K
-from .base import SpatialIndex
-from .registry import register_index
+from ...errors import ParameterError
+from ..base import SpatialIndex, View
+from ..registry import register_index
+from . import kernels as K
+from .traversal import KdListRecord, KdStackRecord
 
 __all__ = ["KdTree", "ShallowKdTree", "DeepKdTree", "CellOccupancy", "cell_occupancy"]
 
@@ -239,6 +240,10 @@ class KdTree(SpatialIndex):
         b = self.node_box[leaves].astype(np.float64)
         self.leaf_lo = np.ascontiguousarray(np.minimum(b[:, 0:3], top))
         self.leaf_hi = np.ascontiguousarray(np.minimum(b[:, 3:6], top))
+        # Index-space boxes of all nodes, for the deep tree's per-ray traversal.
+        nb = self.node_box.astype(np.float64)
+        self.node_lo = np.ascontiguousarray(np.minimum(nb[:, 0:3], top))
+        self.node_hi = np.ascontiguousarray(np.minimum(nb[:, 3:6], top))
         self.nbytes = int(sum(a.nbytes for a in (self.node_box, self.node_axis, self.node_split,
                                                  self.node_child, self.leaf_lo, self.leaf_hi,
                                                  self.node_leaf)))
@@ -286,6 +291,14 @@ class KdTree(SpatialIndex):
                 stack.append(c + 1)
         return np.asarray(order, np.int32)
 
+    def view_leaf_order(self, view: View) -> np.ndarray:
+        """:meth:`leaf_order` for a frame's view."""
+        return self.leaf_order(view.eye if view.perspective else view.direction, view.perspective)
+
+    def list_record(self, view: View) -> KdListRecord:
+        """The leaves front to back for ``view`` (CPU, once per frame)."""
+        return KdListRecord(self.view_leaf_order(view), self.leaf_lo, self.leaf_hi)
+
     def stats(self) -> dict:
         s = super().stats()
         s.update(
@@ -312,6 +325,9 @@ class ShallowKdTree(KdTree):
     name = "kdtree-shallow"
     deep = False
 
+    def traversal_record(self, view: View) -> KdListRecord:
+        return self.list_record(view)
+
 
 @register_index
 class DeepKdTree(KdTree):
@@ -322,6 +338,10 @@ class DeepKdTree(KdTree):
 
     name = "kdtree-deep"
     deep = True
+
+    def traversal_record(self, view: View) -> KdStackRecord:
+        return KdStackRecord(self.node_axis, self.node_child, self.node_lo, self.node_hi,
+                             2 * max(self.height, 1) + 4)
 
 
 def _int_param(value, name: str, lo: int) -> int:

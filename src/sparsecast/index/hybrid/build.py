@@ -23,14 +23,30 @@ import time
 
 import numpy as np
 
-from . import _kdtree_kernels as K
-from .kdtree import ShallowKdTree
-from .registry import register_index
+from ..base import View
+from ..grid.traversal import GridRecord
+from ..kdtree import kernels as K
+from ..kdtree.build import ShallowKdTree
+from ..registry import register_index
+from .traversal import HybridRecord
 
 __all__ = ["HybridPreclassified", "HybridMinMax"]
 
 #: macrocell edge of the hybrid grid (voxel cells); must divide the SVT brick (32)
 HYBRID_CELL = 16
+
+#: stand-ins for the arrays a grid kind does not read (one record type for both kinds)
+_NO_MASK = np.zeros((1, 1, 1), np.uint8)
+_NO_RANGE = np.zeros((1, 1, 1), np.float64)
+
+
+def _grid(index, use_minmax: bool, occupied, cell_min, cell_max) -> GridRecord:
+    ncz, ncy, ncx = (cell_min if use_minmax else occupied).shape
+    return GridRecord(
+        cell=float(index.cell), use_minmax=use_minmax, occupied=occupied, cell_min=cell_min,
+        cell_max=cell_max, prefix=index.tf.prefix, v_lo=float(index.tf.value_range[0]),
+        scale=float(index.tf.scale), ncx=ncx, ncy=ncy, ncz=ncz,
+    )
 
 
 @register_index
@@ -53,6 +69,10 @@ class HybridPreclassified(ShallowKdTree):
         K.block_occupancy(c.svt, c.bslot, c.bcount, self.cell, self.occupied)
         self.build_phases["grid"] = (time.perf_counter() - t0) * 1e3
         self.nbytes += int(self.occupied.nbytes)
+
+    def traversal_record(self, view: View) -> HybridRecord:
+        grid = _grid(self, False, self.occupied, _NO_RANGE, _NO_RANGE)
+        return HybridRecord(self.list_record(view), grid)
 
     def stats(self) -> dict:
         s = super().stats()
@@ -78,6 +98,10 @@ class HybridMinMax(ShallowKdTree):
         self.cell_max = stats.vmax
         self.build_phases["grid"] = (time.perf_counter() - t0) * 1e3
         self.nbytes += int(self.cell_min.nbytes + self.cell_max.nbytes)
+
+    def traversal_record(self, view: View) -> HybridRecord:
+        grid = _grid(self, True, _NO_MASK, self.cell_min, self.cell_max)
+        return HybridRecord(self.list_record(view), grid)
 
     def stats(self) -> dict:
         s = super().stats()

@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.classify import entry_span, range_is_empty
+from ...kernels.classify import entry_span, range_is_empty
 
 SVT_BRICK = 32
 #: cells per brick edge of the coarse classification pre-pass (Volume.brick_stats)

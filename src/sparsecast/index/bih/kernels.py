@@ -3,7 +3,7 @@
 Construction (iterative, explicit task stack, in-place partition), bottom-up
 statistics, the static LoD cut, fixed-point packing and the tree-chunk layout, as
 array-in / array-out ``@njit`` functions. Traversal lives in
-:mod:`sparsecast.index._bih_traversal`.
+:mod:`sparsecast.index.bih.traversal`.
 
 Node fields of the (unpacked) tree, one row per node in depth-first pre-order:
 

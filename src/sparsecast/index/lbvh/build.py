@@ -22,8 +22,8 @@ box. Each phase is timed on its own (``build_phases``, milliseconds):
                 arrival counters, and at 10^3..10^5 leaves this takes < 1 ms);
 ``layout``      depth-first node order, index-space boxes, optional pruning.
 
-Arrays (read by :mod:`sparsecast.renderers.lbvh`)
--------------------------------------------------
+Arrays (traversed by :mod:`.traversal`)
+---------------------------------------
 child : (m, 2) int32
     Children of node ``i`` (``-1, -1`` for a leaf). Node 0 is the root; nodes are
     in depth-first pre-order (a left child directly follows its parent). ``m`` is
@@ -47,7 +47,7 @@ node boxes may overlap even though bricks do not); the renderer stays exact
 because it visits leaves in non-decreasing order of ray entry ``t`` and marches
 each with the shared ``k_next`` de-duplication, which takes every lattice sample
 in the union of the leaves' intervals exactly once and in increasing order (see
-:mod:`sparsecast.renderers.lbvh`). Pruning only adds samples in empty space.
+:mod:`.traversal`). Pruning only adds samples in empty space.
 """
 
 from __future__ import annotations
@@ -56,11 +56,12 @@ import time
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..kernels.bricks import brick_minmax
-from . import _lbvh_kernels as K
-from .base import SpatialIndex
-from .registry import register_index
+from ...errors import ParameterError
+from ...kernels.bricks import brick_minmax
+from ..base import SpatialIndex, View
+from ..registry import register_index
+from . import construct as K
+from .traversal import LbvhRecord
 
 __all__ = ["LBVH"]
 
@@ -214,6 +215,9 @@ class LBVH(SpatialIndex):
         ph["layout"] = (clock() - t6) * 1e3
         self.nbytes = int(self.child.nbytes + self.box.nbytes + self.leaf_first.nbytes
                           + self.leaf_count.nbytes + self.bricks.nbytes)
+
+    def traversal_record(self, view: View) -> LbvhRecord:
+        return LbvhRecord(self.child, self.box)
 
     # -- derived facts ----------------------------------------------------------
     @property

@@ -20,17 +20,67 @@ renderer's radius scale), keeping the boxes conservative.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
-from ._bih_kernels import LEAF, Q_NEG_INF, Q_POS_INF, dequantize_plane
+from ...kernels.ray import slab
+from ..interval import make_scratch, next_interval, record_class, start_ray
+from .kernels import LEAF, Q_NEG_INF, Q_POS_INF, dequantize_plane
+
+__all__ = ["BihRecord", "BihApproxRecord", "decode_inner", "node_kind", "traversal_arrays",
+           "push_root", "next_leaf", "set_ray"]
+
+
+class BihRecord(NamedTuple):
+    """A packed BIH as the traversal reads it (see :class:`.build.PackedBIH`).
+
+    Attributes
+    ----------
+    nodes : (slots,) int64
+        Packed node words.
+    preorder : bool
+        Pre-order layout (else tree chunks).
+    frame_lo, frame_step : (3,) float64
+        Plane dequantisation frame.
+    root_box : (6,) float64
+    depth : int
+    """
+
+    SCRATCH = True
+
+    nodes: np.ndarray
+    preorder: bool
+    frame_lo: np.ndarray
+    frame_step: np.ndarray
+    root_box: np.ndarray
+    depth: int
+
+
+class BihApproxRecord(NamedTuple):
+    """BIH-DVR (approximate): the tree plus what its per-leaf integrators need.
+
+    ``mode`` is :data:`.integrate.MODE_SINGLE` or ``MODE_MULTI``; a leaf's 14-bit
+    density ``d`` stands for the value ``d_lo + d * d_span``, its gradient codes
+    are scaled by ``grad_scale`` (see :mod:`.integrate`).
+    """
+
+    LATTICE = False
+    SCRATCH = True
+
+    tree: BihRecord
+    mode: int
+    grad_scale: float
+    d_lo: float
+    d_span: float
 
 
 @njit(cache=True, inline="always")
 def decode_inner(nodes, i, preorder):
     """``(axis, first, second, single, q0, q1)`` of inner node ``i``; ``second`` is -1
-    for a single child. See :func:`sparsecast.index._bih_kernels.pack_nodes`."""
+    for a single child. See :func:`sparsecast.index.bih.kernels.pack_nodes`."""
     w = nodes[i]
     axis = (w >> 62) & 3
     field = (w >> 32) & 0x3FFFFFFF
@@ -54,16 +104,8 @@ def node_kind(nodes, i):
     return (nodes[i] >> 62) & 3
 
 
-@njit(cache=True, inline="always")
-def _cut(o, inv, flat, lo, hi, t0, t1):
-    """``[t0, t1]`` restricted to ``lo <= o + t d <= hi`` on one axis (``inv = 1/d``)."""
-    if flat:
-        if o < lo or o > hi:
-            return 1.0, 0.0
-        return t0, t1
-    if inv > 0.0:
-        return max(t0, (lo - o) * inv), min(t1, (hi - o) * inv)
-    return max(t0, (hi - o) * inv), min(t1, (lo - o) * inv)
+#: ``[t0, t1]`` restricted to ``lo <= o + t d <= hi`` on one axis (``inv = 1/d``)
+_cut = slab
 
 
 @njit(cache=True)
@@ -188,3 +230,61 @@ def set_ray(ro, rinv, rflat, ox, oy, oz, dx, dy, dz):
     rinv[0] = 1.0 / dx if dx != 0.0 else 0.0
     rinv[1] = 1.0 / dy if dy != 0.0 else 0.0
     rinv[2] = 1.0 / dz if dz != 0.0 else 0.0
+
+
+def tree_of(record):  # pragma: no cover - jitted only
+    """The :class:`BihRecord` inside either BIH record type."""
+    raise NotImplementedError
+
+
+@overload(tree_of, jit_options={"cache": True})
+def _tree_of(record):
+    cls = record_class(record)
+    if cls is BihRecord:
+        return lambda record: record
+    if cls is BihApproxRecord:
+        return lambda record: record.tree
+
+
+def _is_bih(record) -> bool:
+    return record_class(record) in (BihRecord, BihApproxRecord)
+
+
+@overload(make_scratch, jit_options={"cache": True})
+def _scratch(record):
+    if _is_bih(record):
+        return lambda record: traversal_arrays(tree_of(record).depth)
+
+
+@overload(start_ray, jit_options={"cache": True})
+def _start(record, scratch, ray, t_lo, t_hi):
+    if _is_bih(record):
+
+        def impl(record, scratch, ray, t_lo, t_hi):
+            tree = tree_of(record)
+            st_node, st_t, st_box, leaf_box, ro, rinv, rflat = scratch
+            ox, oy, oz, dx, dy, dz = ray
+            set_ray(ro, rinv, rflat, ox, oy, oz, dx, dy, dz)
+            hs = 0
+            if tree.nodes.shape[0] > 0:
+                hs = push_root(tree.root_box, ro, rinv, rflat, t_lo, t_hi, st_node, st_t, st_box)
+            return (hs, -1)
+
+        return impl
+
+
+@overload(next_interval, jit_options={"cache": True})
+def _next(record, scratch, ray, state, t_covered):
+    if _is_bih(record):
+
+        def impl(record, scratch, ray, state, t_covered):
+            tree = tree_of(record)
+            st_node, st_t, st_box, leaf_box, ro, rinv, rflat = scratch
+            hs = state[0]
+            leaf, t0, t1, hs = next_leaf(tree.nodes, tree.preorder, tree.frame_lo, tree.frame_step, 0.0,
+                                         ro, rinv, rflat, st_node, st_t, st_box, hs, leaf_box)
+            if leaf < 0:
+                return math.inf, -math.inf, (0, -1)
+            return t0, t1, (hs, leaf)
+
+        return impl

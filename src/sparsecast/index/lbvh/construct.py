@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit, prange
 from numba.cpython.unsafe.numbers import leading_zeros
 
-from ..kernels.classify import classify_ranges
+from ...kernels.classify import classify_ranges
 
 #: bricks per axis that 30-bit Morton codes (10 bits per axis) can address
 MORTON30_MAX = 1 << 10

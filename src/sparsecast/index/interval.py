@@ -1,0 +1,128 @@
+"""The interval-iterator protocol between spatial indices and the DVR driver.
+
+Every index hands the driver (:mod:`sparsecast.render.driver`) one *record*: a
+``typing.NamedTuple`` of arrays and scalars, one record class per index kind.
+The driver never looks inside it; it calls four generic functions, which each
+index package implements for its record class with ``numba.extending.overload``
+(dispatch on the record's Numba type, so ``cache=True`` keeps working across
+processes; a closure factory would recompile in every new process):
+
+``make_scratch(record)``
+    Per-tile scratch (a stack, a leaf box ...), allocated once per 8x8 tile.
+``start_ray(record, scratch, ray, t_lo, t_hi) -> state``
+    Begin a ray. ``ray`` is the index-space ``(ox, oy, oz, dx, dy, dz)``, the
+    parameter ``t`` a world-space distance; ``[t_lo, t_hi]`` (``t_lo >= 0``) is
+    the ray's interval in the clip box. ``state`` is a tuple of scalars.
+``next_interval(record, scratch, ray, state, t_covered) -> (t0, t1, state)``
+    The next interval of the ray that may hold samples of non-zero opacity,
+    front to back (``t0`` non-decreasing); ``t0 > t1`` once there are no more.
+    ``t_covered`` is the end of the segment the driver holds open (``-inf``
+    when none): an interval ending there has nothing new, and an index may
+    prune subtrees against it (the LBVH does). Intervals may overlap, touch
+    or extend past ``[t_lo, t_hi]``; the driver merges touching ones and
+    clamps lattice indices to the clip.
+``integrate(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc)``
+    Composite one interval. The default, for every record whose class does not
+    set ``LATTICE = False``, is the exact lattice march
+    (:func:`sparsecast.kernels.march.march_interval`); approximate indices (the
+    BIH's single- and multi-sample modes) overload it for their record.
+
+A record class may set two class attributes (read at compile time):
+
+``LATTICE = True``
+    Intervals are marched on the global lattice with :func:`march_interval` and
+    touching intervals are merged (the same samples, fewer restarts). ``False``:
+    each interval goes to the record's own ``integrate``, unmerged.
+``SCRATCH = False``
+    The record needs no scratch; a 1-element dummy array is passed.
+
+Adding an exact index is one package with a record class, overloads of
+``start_ray`` and ``next_interval`` (and ``make_scratch`` if ``SCRATCH``), and a
+``traversal_record`` method on the index class: no edit to the driver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba.extending import overload
+
+from ..kernels.march import march_interval
+
+__all__ = ["make_scratch", "start_ray", "next_interval", "integrate", "coalesces", "record_class"]
+
+
+def make_scratch(record):  # pragma: no cover - replaced by overloads in jitted code
+    """Per-tile scratch of ``record`` (see the module docstring)."""
+    raise NotImplementedError("make_scratch is only callable from jitted code")
+
+
+def start_ray(record, scratch, ray, t_lo, t_hi):  # pragma: no cover
+    """Traversal state at the start of a ray (see the module docstring)."""
+    raise NotImplementedError("start_ray is only callable from jitted code")
+
+
+def next_interval(record, scratch, ray, state, t_covered):  # pragma: no cover
+    """The next non-empty interval ``(t0, t1, state)`` (see the module docstring)."""
+    raise NotImplementedError("next_interval is only callable from jitted code")
+
+
+def integrate(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):  # pragma: no cover
+    """Composite one interval (see the module docstring)."""
+    raise NotImplementedError("integrate is only callable from jitted code")
+
+
+def coalesces(record):  # pragma: no cover
+    """Whether the driver merges touching intervals of ``record`` (``LATTICE``)."""
+    raise NotImplementedError("coalesces is only callable from jitted code")
+
+
+def record_class(numba_type):
+    """The Python class behind a record's Numba type (None for other types).
+
+    Overloads use it to claim their record: ``record_class(record) is MyRecord``.
+    """
+    return getattr(numba_type, "instance_class", None)
+
+
+def _lattice(numba_type) -> bool:
+    return bool(getattr(record_class(numba_type), "LATTICE", True))
+
+
+@overload(coalesces, jit_options={"cache": True})
+def _coalesces(record):
+    if record_class(record) is None:
+        return None
+    if _lattice(record):
+        return lambda record: True
+    return lambda record: False
+
+
+@overload(make_scratch, jit_options={"cache": True})
+def _no_scratch(record):
+    cls = record_class(record)
+    if cls is None or getattr(cls, "SCRATCH", False):
+        return None
+
+    def impl(record):
+        return np.empty(1, np.int64)
+
+    return impl
+
+
+@overload(integrate, jit_options={"cache": True})
+def _integrate_lattice(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
+    if record_class(record) is None or not _lattice(record):
+        return None
+
+    def impl(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
+        flat, nx, ny, nz = vol
+        ox, oy, oz, dx, dy, dz = ray
+        wdx, wdy, wdz = wdir
+        r, g, b, a = acc
+        return march_interval(
+            flat, nx, ny, nz, frame.table, frame.v_lo, frame.scale, ox, oy, oz, dx, dy, dz,
+            wdx, wdy, wdz, frame.inv_spacing, frame.dt, t0, t1, k_next, k_max, r, g, b, a,
+            frame.ert, frame.shading,
+        )
+
+    return impl

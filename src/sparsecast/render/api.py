@@ -1,0 +1,249 @@
+"""``render()``: the one entry point for direct volume rendering, whatever the index."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..camera import Camera
+from ..errors import ParameterError
+from ..image import Image
+from ..index import SpatialIndex, View, build_index
+from ..transfer import TransferFunction
+from ..volume import Volume
+from .driver import dvr_tiles
+from .frame import Frame
+from .schedule import run_tiles
+from .options import (
+    DEFAULT_SHADING, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, as_float, background_array, check_size, initial_rgba,
+    rect_bounds, shading_array,
+)
+
+__all__ = ["render", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "DEFAULT_SHADING"]
+
+MAX_SAMPLES_PER_RAY = 1 << 22
+
+
+def render(
+    volume: Volume,
+    tf: TransferFunction,
+    camera: Camera,
+    width: int = 512,
+    height: int = 512,
+    *,
+    dt: float | None = None,
+    index: str | SpatialIndex = "naive",
+    ert: float = 0.99,
+    shading: bool | Mapping[str, float] = False,
+    background: str | Sequence[float] = "transparent",
+    clip_box: Sequence[Sequence[float]] | None = None,
+    clip_open: Sequence[Sequence[bool]] | None = None,
+    initial: np.ndarray | None = None,
+    rect: Sequence[int] | None = None,
+    **index_options: Any,
+) -> Image:
+    """Direct volume rendering of ``volume`` classified by ``tf`` as seen by ``camera``.
+
+    Every index samples the same global lattice ``t_k = k * dt`` along each ray, so
+    exact empty-space-skipping indices return the same image as ``index="naive"``.
+
+    Parameters
+    ----------
+    volume : Volume
+    tf : TransferFunction
+    camera : Camera
+    width, height : int
+        Image size in pixels, each 1..16384 and at most 64 Mpixel in all.
+    dt : float, optional
+        World-space distance between samples. Default: half the smallest voxel spacing.
+    index : str or SpatialIndex
+        An index name from :func:`available_indices` (built on the fly; its build
+        time appears in ``stats["build_ms"]``), or a prebuilt index for this volume
+        and TF, which is reused.
+    ert : float
+        Early ray termination once accumulated opacity reaches this, in (0, 1];
+        1.0 turns it off.
+    shading : bool or mapping
+        Gradient shading with a headlight (Blinn-Phong). ``True`` uses
+        :data:`DEFAULT_SHADING`; a mapping overrides ``ka``, ``kd``, ``ks``, ``shininess``.
+    background : str or sequence of 3-4 floats
+        Straight RGB(A) in [0, 1] composited behind the volume, or one of
+        ``transparent`` (default), ``black``, ``white``, ``gray``.
+    clip_box : ((x0, y0, z0), (x1, y1, z1)), optional
+        World-space box outside which no sample is taken (intersected with the
+        volume's box). Default: the volume's box.
+    clip_open : ((bool, bool, bool), (bool, bool, bool)), optional
+        Faces of ``clip_box`` (lower x, y, z faces; upper x, y, z faces) that do
+        not contain their plane: a sample exactly on an open face is not taken.
+        Two boxes sharing a face, open in one and closed in the other, never both
+        take a sample on it. Default: all closed.
+    initial : (h, w, 4) float32, optional
+        Premultiplied RGBA already accumulated in front of the clip box, per
+        pixel of the rendered rectangle: rays continue from it (and stop at once
+        where it reaches ``ert``).
+    rect : (x0, y0, w, h), optional
+        Render only this rectangle of the ``width`` x ``height`` image; the result
+        is ``h`` x ``w``. Default: the whole image.
+    **index_options
+        Passed to :func:`build_index` when ``index`` is a name (e.g. ``cell=16``
+        for the grids).
+
+    Returns
+    -------
+    Image
+        Premultiplied float32 RGBA and ``stats``: ``ms`` (marching only), ``samples``,
+        ``samples_nonempty``, ``rays``, ``build_ms`` (index built on the fly),
+        ``jit_ms`` (one-off kernel compilation or cache load, kept out of ``ms``).
+
+    Notes
+    -----
+    Opacity correction ``1 - (1 - a) ** (dt / unit_distance)`` is applied to the TF
+    table entries, which are then linearly interpolated; ``unit_distance`` is the
+    TF's, or the smallest voxel spacing when the TF leaves it unset.
+    """
+    if isinstance(volume, np.ndarray):
+        volume = Volume(volume)
+    if not isinstance(volume, Volume):
+        raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
+    if not isinstance(tf, TransferFunction):
+        raise ParameterError(f"tf: expected a sparsecast.TransferFunction, got {type(tf).__name__}")
+    if not isinstance(camera, Camera):
+        raise ParameterError(f"camera: expected a sparsecast.Camera, got {type(camera).__name__}")
+    width, height = check_size(width, height)
+    x0, y0, w, h = rect_bounds(rect, width, height)
+    min_spacing = float(volume.spacing.min())
+    if dt is None:
+        dt = 0.5 * min_spacing
+    dt = as_float(dt, "dt")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ParameterError(f"dt: expected a positive world-space step, got {dt}")
+    if volume.diagonal / dt > MAX_SAMPLES_PER_RAY:
+        raise ParameterError(
+            f"dt: {dt:g} would take {volume.diagonal / dt:.3g} samples per ray across the volume; "
+            f"expected at most {MAX_SAMPLES_PER_RAY} (dt >= {volume.diagonal / MAX_SAMPLES_PER_RAY:.3g})"
+        )
+    ert = as_float(ert, "ert")
+    if not (0.0 < ert <= 1.0):
+        raise ParameterError(f"ert: expected an opacity threshold in (0, 1], got {ert}")
+    clip_lo, clip_hi, open_lo, open_hi = _clip(volume, clip_box, clip_open)
+    init = initial_rgba(initial, w, h)
+
+    build_ms = 0.0
+    if isinstance(index, str):
+        index = build_index(volume, tf, index, **index_options)
+        build_ms = index.build_ms
+    elif isinstance(index, SpatialIndex):
+        if index_options:
+            raise ParameterError(
+                f"index options {sorted(index_options)} apply only when index is a name; "
+                "this index is already built"
+            )
+        if index.volume is not volume or index.tf is not tf:
+            raise ParameterError(
+                f"index: this {index.name!r} index was built for another volume or transfer function; "
+                "build a new one with build_index(volume, tf, name)"
+            )
+    else:
+        raise ParameterError(f"index: expected an index name or a SpatialIndex, got {type(index).__name__}")
+
+    unit = tf.unit_distance if tf.unit_distance is not None else min_spacing
+    origin = np.ascontiguousarray(volume.origin, dtype=np.float64)
+    inv_spacing = np.ascontiguousarray(1.0 / volume.spacing, dtype=np.float64)
+    cam = np.ascontiguousarray(camera.ray_params(width, height), dtype=np.float64)
+    frame = Frame(
+        cam=cam, width=width, height=height, x0=x0, y0=y0, origin=origin, inv_spacing=inv_spacing,
+        dt=dt, ert=ert, shading=shading_array(shading), background=background_array(background),
+        table=np.ascontiguousarray(tf.opacity_table(dt, unit), dtype=np.float32),
+        v_lo=float(tf.value_range[0]), scale=float(tf.scale),
+        clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
+    )
+    record = index.traversal_record(_view(cam, origin, inv_spacing))
+    data = volume.data
+    jit_ms = _warm_up(record, data, frame, init)
+    rgba = np.empty((h, w, 4), np.float32)
+    samples = np.empty((h, w), np.int32)
+    nonempty = np.empty((h, w), np.int32)
+    t0 = time.perf_counter()
+    run_tiles(dvr_tiles, w, h, record, data, frame, init, rgba, samples, nonempty)
+    ms = (time.perf_counter() - t0) * 1e3
+    n_samples = int(samples.sum(dtype=np.int64))
+    stats: dict[str, Any] = {
+        "ms": ms,
+        "samples": n_samples,
+        "samples_nonempty": int(nonempty.sum(dtype=np.int64)),
+        "rays": w * h,
+        "msamples_per_s": n_samples / ms / 1e3 if ms > 0 else float("nan"),
+        "index": index.name,
+        "build_ms": build_ms,
+        "jit_ms": jit_ms,
+        "width": w,
+        "height": h,
+        "dt": dt,
+        "ert": ert,
+        "shading": bool(frame.shading[0]),
+    }
+    return Image(rgba, stats, samples)
+
+
+def _view(cam: np.ndarray, origin: np.ndarray, inv_spacing: np.ndarray) -> View:
+    """The camera as an index sees it (index space)."""
+    return View(eye=(cam[0:3] - origin) * inv_spacing, direction=cam[3:6] * inv_spacing,
+                perspective=bool(cam[12] != 0.0))
+
+
+def _clip(volume: Volume, clip_box, clip_open):
+    """Index-space clip box (intersected with the volume box) and its open faces."""
+    nz, ny, nx = volume.shape
+    lo = np.zeros(3)
+    hi = np.array([nx - 1.0, ny - 1.0, nz - 1.0])
+    open_lo = np.zeros(3, np.bool_)
+    open_hi = np.zeros(3, np.bool_)
+    if clip_box is None:
+        if clip_open is not None:
+            raise ParameterError("clip_open: applies only with clip_box")
+        return lo, hi, open_lo, open_hi
+    try:
+        box = np.array(clip_box, dtype=np.float64)
+    except (TypeError, ValueError):
+        box = np.zeros(0)
+    if box.shape != (2, 3) or not np.all(np.isfinite(box)) or np.any(box[0] > box[1]):
+        raise ParameterError(
+            f"clip_box: expected ((x0, y0, z0), (x1, y1, z1)) of finite world coordinates with x0 <= x1 "
+            f"etc., got {clip_box!r}"
+        )
+    if clip_open is not None:
+        flags = np.asarray(clip_open)
+        if flags.shape != (2, 3) or flags.dtype != np.bool_:
+            raise ParameterError(f"clip_open: expected ((bool, bool, bool), (bool, bool, bool)), got {clip_open!r}")
+    else:
+        flags = np.zeros((2, 3), np.bool_)
+    c_lo = (box[0] - volume.origin) / volume.spacing
+    c_hi = (box[1] - volume.origin) / volume.spacing
+    # A face of the clip box counts where it bounds the volume's box (or meets its face).
+    open_lo = flags[0] & (c_lo >= lo)
+    open_hi = flags[1] & (c_hi <= hi)
+    return (np.ascontiguousarray(np.maximum(lo, c_lo)), np.ascontiguousarray(np.minimum(hi, c_hi)),
+            np.ascontiguousarray(open_lo), np.ascontiguousarray(open_hi))
+
+
+_WARM: set[tuple] = set()
+
+
+def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
+    """Compile (or load from the on-disk cache) the driver for these argument types
+    by rendering one pixel, so that ``stats["ms"]`` never includes JIT time.
+
+    Returns the milliseconds spent, 0 when this combination was already warm.
+    """
+    key = (type(record), data.dtype.str, init.shape[0] > 0)
+    if key in _WARM:
+        return 0.0
+    t0 = time.perf_counter()
+    tiny_init = init[:1, :1] if init.shape[0] else init
+    dvr_tiles(0, 1, record, data, frame, tiny_init, np.empty((1, 1, 4), np.float32),
+              np.empty((1, 1), np.int32), np.empty((1, 1), np.int32))
+    _WARM.add(key)
+    return (time.perf_counter() - t0) * 1e3

@@ -1,0 +1,62 @@
+"""The per-frame record the DVR driver reads: camera, TF table, lattice, clip, screen rectangle."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["Frame"]
+
+
+class Frame(NamedTuple):
+    """Everything the driver needs for one frame besides the index and the voxels.
+
+    Built by :func:`sparsecast.render.render`; all arrays are C-contiguous and of
+    the dtypes given, so one compiled driver serves every frame.
+
+    Attributes
+    ----------
+    cam : (13,) float64
+        :meth:`Camera.ray_params` for the full image.
+    width, height : int
+        Full image size (rays are generated for it).
+    x0, y0 : int
+        Top-left pixel of the rendered rectangle; the output arrays have the
+        rectangle's size.
+    origin, inv_spacing : (3,) float64
+        World position of voxel (0, 0, 0) and ``1 / spacing`` (x, y, z).
+    dt : float
+        World-space lattice step.
+    ert : float
+        Early-ray-termination opacity.
+    shading : (5,) float64
+        See :mod:`sparsecast.kernels.shade`.
+    background : (4,) float64
+        Straight RGBA composited behind each pixel.
+    table : (n, 4) float32
+        Step-corrected TF table; ``v_lo``, ``scale`` map values onto it.
+    clip_lo, clip_hi : (3,) float64
+        Index-space clip box (already intersected with the volume box).
+    open_lo, open_hi : (3,) bool
+        Clip faces that exclude samples lying exactly on them.
+    """
+
+    cam: np.ndarray
+    width: int
+    height: int
+    x0: int
+    y0: int
+    origin: np.ndarray
+    inv_spacing: np.ndarray
+    dt: float
+    ert: float
+    shading: np.ndarray
+    background: np.ndarray
+    table: np.ndarray
+    v_lo: float
+    scale: float
+    clip_lo: np.ndarray
+    clip_hi: np.ndarray
+    open_lo: np.ndarray
+    open_hi: np.ndarray
