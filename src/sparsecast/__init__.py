@@ -9,7 +9,11 @@
 (64, 64, 4)
 """
 
-from . import datasets
+from . import _kernel_cache
+
+_kernel_cache.configure()  # before any kernel module is imported (see _kernel_cache)
+
+from . import datasets  # noqa: E402
 from .camera import Camera
 from .elements import ParticleSet
 from .errors import (

@@ -1,8 +1,9 @@
 """The main oracle: every exact empty-space-skipping index renders the naive image.
 
 Parametrised over :func:`sparsecast.available_indices`, so an index registered by a
-later issue is checked here without new test code; per-index build options to
-exercise are listed in ``INDEX_OPTIONS``.
+later issue is checked here without new test code (``bbox_index.py`` registers a
+trivial one to prove it); per-index build options to exercise are listed in
+``INDEX_OPTIONS``.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from hypothesis import strategies as st
 import sparsecast as sc
 from synthetic import sparse_volume
 from sparsecast.index.registry import _INDICES
+
+import bbox_index  # noqa: F401  (registers "test-bbox": a new index gets every test below)
 
 #: build options each index is tested with (default: its defaults only)
 INDEX_OPTIONS: dict[str, list[dict]] = {
@@ -110,6 +113,18 @@ def test_tf_without_empty_space(name, opts, scene):
     cam = sc.Camera.orbit(scene, 15, 40)
     img, ref = assert_same_as_naive(scene, tf, cam, 24, 24, name, opts, ert=1.0)
     assert img.stats["samples"] == ref.stats["samples"]
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_skips_on_a_sparse_scene(name, opts):
+    """Every exact index takes strictly fewer samples than naive where there is
+    empty space to skip: an index that yields the whole box fails here."""
+    rng = np.random.default_rng(21)
+    vol = sparse_volume(rng, (48, 40, 56), 3)
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.3)
+    cam = sc.Camera.orbit(vol, 35, 25)
+    img, ref = assert_same_as_naive(vol, tf, cam, 32, 32, name, opts, ert=1.0)
+    assert img.stats["samples"] < ref.stats["samples"], f"{name} {opts} skipped nothing"
 
 
 @pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)

@@ -13,7 +13,7 @@ from sparsecast.errors import ParameterError
 from sparsecast.index.kdtree import kernels as K
 from sparsecast.index.kdtree import CellOccupancy
 
-from test_ess_exactness import sparse_volume
+from synthetic import sparse_volume
 
 TREES = ["kdtree-shallow", "kdtree-deep", "hybrid-pc", "hybrid-mm"]
 

@@ -1,0 +1,108 @@
+"""A Numba kernel cache that cannot go stale.
+
+Numba's ``cache=True`` keys a cached kernel on its own source file's time stamp,
+so editing an ``@njit`` helper inlined from *another* module (every kernel here
+inlines :mod:`sparsecast.kernels` and the indices' traversals) leaves the caller's
+cached machine code in place, running the old helper. Before the first kernel
+is compiled, this module points Numba's cache at a folder named after a hash of
+every package source that uses Numba (and Numba's version), so any such edit
+selects a fresh folder and recompiles everything once.
+
+Where: ``$SPARSECAST_CACHE_DIR``, else ``$NUMBA_CACHE_DIR``, else
+``$XDG_CACHE_HOME/sparsecast`` (``~/.cache/sparsecast``), in a subfolder
+``kernels-<hash>``. Folders of other hashes unused for :data:`PRUNE_DAYS` days are
+removed. ``SPARSECAST_CACHE_DIR=off`` leaves Numba's own default (``__pycache__``
+beside the sources). An unwritable location falls back to that default too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import time
+from pathlib import Path
+
+__all__ = ["configure", "source_hash", "cache_dir"]
+
+#: folders of other source hashes older than this are deleted
+PRUNE_DAYS = 14
+
+_PACKAGE = Path(__file__).resolve().parent
+_configured: Path | None = None
+
+
+def source_hash(root: Path | None = None) -> str:
+    """Hash of every module of the package (or of ``root``) that uses Numba, and of Numba's version."""
+    import numba
+
+    root = _PACKAGE if root is None else Path(root)
+    h = hashlib.sha256(numba.__version__.encode())
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_bytes()
+        if b"numba" in text:
+            h.update(path.relative_to(root).as_posix().encode())
+            h.update(b"\0")
+            h.update(text)
+    return h.hexdigest()[:16]
+
+
+def _base() -> Path | None:
+    for var in ("SPARSECAST_CACHE_DIR", "NUMBA_CACHE_DIR"):
+        value = os.environ.get(var)
+        if value:
+            return None if value.lower() == "off" and var == "SPARSECAST_CACHE_DIR" else Path(value)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "sparsecast"
+
+
+def _writable(folder: Path) -> bool:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+        return True
+    except OSError:
+        return False
+
+
+def _prune(base: Path, keep: Path) -> None:
+    cutoff = time.time() - PRUNE_DAYS * 86400
+    try:
+        for other in base.glob("kernels-*"):
+            if other != keep and other.is_dir() and other.stat().st_mtime < cutoff:
+                shutil.rmtree(other, ignore_errors=True)
+    except OSError:
+        pass
+
+
+def configure() -> Path | None:
+    """Point Numba's cache at the folder for the current sources (idempotent).
+
+    Returns the folder, or None when Numba's default is kept. Must run before
+    the first ``@njit(cache=True)`` function is defined: Numba picks the cache
+    location when a function is decorated.
+    """
+    global _configured
+    if _configured is not None:
+        return _configured
+    base = _base()
+    if base is None:
+        return None
+    folder = base / f"kernels-{source_hash()}"
+    if not _writable(folder):
+        return None
+    os.utime(folder)  # the folder's mtime says when it was last used (see _prune)
+    _prune(base, folder)
+    from numba.core import config
+
+    config.CACHE_DIR = str(folder)
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)  # the same folder for subprocesses
+    _configured = folder
+    return folder
+
+
+def cache_dir() -> Path | None:
+    """The folder configured by :func:`configure` (None: Numba's default)."""
+    return _configured

@@ -1,0 +1,67 @@
+"""The one slab routine and the lattice clip with half-open faces, against brute force."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from sparsecast.kernels.ray import clip_box, clip_lattice, lattice_range
+
+
+def _brute(o, d, lo, hi, open_lo, open_hi, dt, k_max=400):
+    """Lattice indices whose t passes every face's own test (t-space, per axis)."""
+    ks = []
+    for k in range(0, k_max):
+        t = k * dt
+        ok = True
+        for a in range(3):
+            if d[a] == 0.0:
+                ok &= lo[a] <= o[a] <= hi[a]
+                ok &= not (open_lo[a] and o[a] == lo[a]) and not (open_hi[a] and o[a] == hi[a])
+                continue
+            inv = 1.0 / d[a]
+            ta, tb = (lo[a] - o[a]) * inv, (hi[a] - o[a]) * inv
+            oa, ob = open_lo[a], open_hi[a]
+            if inv < 0:
+                ta, tb, oa, ob = tb, ta, ob, oa
+            ok &= (k > math.floor(ta / dt)) if oa else (k >= math.ceil(ta / dt))
+            ok &= (k < math.ceil(tb / dt)) if ob else (k <= math.floor(tb / dt))
+        if ok:
+            ks.append(k)
+    return ks
+
+
+coords = st.sampled_from([-3.0, 0.0, 1.0, 2.5, 4.0, 7.0])
+dirs = st.sampled_from([-1.0, -0.5, 0.0, 0.25, 1.0, 2.0])
+
+
+@given(o=st.tuples(coords, coords, coords), d=st.tuples(dirs, dirs, dirs),
+       lo=st.tuples(coords, coords, coords), ext=st.tuples(*(st.sampled_from([0.0, 1.0, 3.0, 5.5]),) * 3),
+       open_lo=st.tuples(st.booleans(), st.booleans(), st.booleans()),
+       open_hi=st.tuples(st.booleans(), st.booleans(), st.booleans()),
+       dt=st.sampled_from([0.25, 0.5, 1.0, 0.3]))
+def test_clip_lattice_matches_brute_force(o, d, lo, ext, open_lo, open_hi, dt):
+    if not any(d):
+        d = (1.0, d[1], d[2])
+    lo = np.array(lo)
+    hi = lo + np.array(ext)
+    k0, k1, t_lo, t_hi = clip_lattice(o, d, lo, hi, np.array(open_lo), np.array(open_hi), dt)
+    got = list(range(k0, k1 + 1))
+    assert got == _brute(o, d, lo, hi, open_lo, open_hi, dt)
+    # All faces closed: exactly the lattice range of clip_box's interval.
+    c0, c1, _, _ = clip_lattice(o, d, lo, hi, np.zeros(3, bool), np.zeros(3, bool), dt)
+    tn, tf = clip_box(*o, *d, *lo, *hi)
+    r0, r1 = lattice_range(tn, tf, dt)
+    assert (list(range(c0, c1 + 1))) == list(range(r0, r1 + 1))
+
+
+def test_axis_parallel_ray_on_a_face():
+    lo, hi = np.zeros(3), np.full(3, 4.0)
+    closed = np.zeros(3, bool)
+    k0, k1, _, _ = clip_lattice((0.0, 2.0, -1.0), (0.0, 0.0, 1.0), lo, hi, closed, closed, 0.5)
+    assert (k0, k1) == (2, 10)  # z from 0 to 4 at t = 1 .. 5
+    k0, k1, _, _ = clip_lattice((0.0, 2.0, -1.0), (0.0, 0.0, 1.0), lo, hi, np.array([True, False, False]), closed, 0.5)
+    assert k0 > k1  # the ray lies in the open x = 0 face

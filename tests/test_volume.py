@@ -1,0 +1,80 @@
+"""``Volume.brick_stats`` against brute force, and its parameter checks.
+"""
+
+
+from __future__ import annotations
+
+import math
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import sparsecast as sc
+from sparsecast import (
+    Camera,
+    ParameterError,
+    TransferFunction,
+    TransferFunctionError,
+    Volume,
+    VolumeDataError,
+)
+
+from render_helpers import *  # noqa: F401,F403  (scenes, TFs, cameras, reference comparison)
+from render_helpers import _CAMERA_NAMES, _ORIGIN, _SHAPE, _SPACING  # noqa: F401
+
+
+@pytest.fixture(scope="module")
+def small():
+    rng = np.random.default_rng(3)
+    vol = random_volume(rng, (12, 12, 12), "float32")
+    tf = TransferFunction.preset("viridis", (0.0, 1.0))
+    cam = Camera.orbit(vol, 30, 20)
+    return vol, tf, cam
+
+
+
+# ---------------------------------------------------------------------------------
+# brick statistics
+# ---------------------------------------------------------------------------------
+@given(
+    shape=st.tuples(st.integers(1, 9), st.integers(1, 9), st.integers(1, 9)),
+    brick=st.integers(1, 4),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_brick_stats_brute_force(shape, brick, seed):
+    rng = np.random.default_rng(seed)
+    data = (rng.normal(size=shape) * (rng.random(shape) < 0.5)).astype(np.float32)
+    vol = Volume(data)
+    bs = vol.brick_stats(brick)
+    assert bs.brick_size == brick
+    nb = tuple(max(1, -(-(n - 1) // brick)) for n in shape)
+    assert bs.shape == nb
+    assert vol.brick_stats(brick) is bs  # cached
+    for bk in range(nb[0]):
+        for bj in range(nb[1]):
+            for bi in range(nb[2]):
+                sl = tuple(
+                    slice(max(b * brick - 1, 0), min((b + 1) * brick + 1, n - 1) + 1)
+                    for b, n in zip((bk, bj, bi), shape)
+                )
+                block = data[sl].astype(np.float64)
+                assert bs.vmin[bk, bj, bi] == block.min()
+                assert bs.vmax[bk, bj, bi] == block.max()
+                # trilinear samples anywhere inside the brick stay within its range
+                lo = np.array([bi, bj, bk], np.float64) * brick
+                hi = np.minimum(lo + brick, np.array(shape[::-1], np.float64) - 1)
+                pts = lo + (hi - lo) * rng.random((64, 3))
+                pts[:8] = lo + (hi - lo) * np.array(np.meshgrid([0, 1], [0, 1], [0, 1])).reshape(3, -1).T
+                v = trilinear(data, pts[:, 0], pts[:, 1], pts[:, 2])
+                eps = 1e-12 * max(1.0, abs(block).max())
+                assert v.min() >= bs.vmin[bk, bj, bi] - eps
+                assert v.max() <= bs.vmax[bk, bj, bi] + eps
+
+
+def test_brick_stats_bad_size(small):
+    with pytest.raises(ParameterError, match="brick_size"):
+        small[0].brick_stats(0)
+
