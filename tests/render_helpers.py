@@ -2,25 +2,13 @@
 
 from __future__ import annotations
 
-import math
-import zlib
-
 import numpy as np
-import pytest
-from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import sparsecast as sc
-from sparsecast import (
-    Camera,
-    ParameterError,
-    TransferFunction,
-    TransferFunctionError,
-    Volume,
-    VolumeDataError,
-)
+from sparsecast import Camera, TransferFunction, Volume
 
-from reference import expected_sample_count, reference_render, trilinear
+from reference import reference_render
 
 TOL = 1e-5
 

@@ -1,29 +1,16 @@
 """``Volume.brick_stats`` against brute force, and its parameter checks.
 """
 
-
 from __future__ import annotations
-
-import math
-import zlib
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
-import sparsecast as sc
-from sparsecast import (
-    Camera,
-    ParameterError,
-    TransferFunction,
-    TransferFunctionError,
-    Volume,
-    VolumeDataError,
-)
-
-from render_helpers import *  # noqa: F401,F403  (scenes, TFs, cameras, reference comparison)
-from render_helpers import _CAMERA_NAMES, _ORIGIN, _SHAPE, _SPACING  # noqa: F401
+from sparsecast import Camera, ParameterError, TransferFunction, Volume
+from render_helpers import random_volume
+from reference import trilinear
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 import sparsecast as sc
 from sparsecast.elements import Elements, voxel_elements
 from sparsecast.errors import ParameterError
-from sparsecast.index.bih import kernels as K
+from sparsecast.index.bih import construct, pack
 from sparsecast.index.bih import BIH, build_bih
 from synthetic import sparse_volume
 
@@ -51,7 +51,7 @@ def check_structure(tree):
     n = len(el)
     lo = el.lo[tree.perm]
     hi = el.hi[tree.perm]
-    leaves = np.flatnonzero(tree.kind == K.LEAF)
+    leaves = np.flatnonzero(tree.kind == construct.LEAF)
     seen = np.zeros(n, np.int64)
     for i in leaves:
         seen[tree.first[i]:tree.first[i] + tree.count[i]] += 1
@@ -61,7 +61,7 @@ def check_structure(tree):
         b, e = tree.first[i], tree.first[i] + tree.count[i]
         assert e > b
         assert np.all(lo[b:e] >= tree.box[i, :3]) and np.all(hi[b:e] <= tree.box[i, 3:])
-        if tree.kind[i] == K.LEAF:
+        if tree.kind[i] == construct.LEAF:
             continue
         a = tree.kind[i]
         c0, c1 = tree.child[i]
@@ -132,14 +132,14 @@ def test_lod_cut():
     tree = build_bih(el)
     # Everything collapses into the root when any fill and spread are allowed.
     root = tree.lod(None, 0.0, math.inf)
-    assert root.n_nodes == 1 and root.kind[0] == K.LEAF and root.mean[0] == pytest.approx(el.density.mean())
+    assert root.n_nodes == 1 and root.kind[0] == construct.LEAF and root.mean[0] == pytest.approx(el.density.mean())
     # No criterion met: the cut is the whole tree.
     same = tree.lod(None, 1.0, 0.0)
     assert same.n_nodes == tree.n_nodes and np.array_equal(same.child, tree.child)
     for md in (0, 1, 3):
         cut = tree.lod(md)
         assert cut.max_depth <= md
-        leaves = np.flatnonzero(cut.kind == K.LEAF)
+        leaves = np.flatnonzero(cut.kind == construct.LEAF)
         seen = np.zeros(len(el), np.int64)
         for i in leaves:
             seen[cut.first[i]:cut.first[i] + cut.count[i]] += 1
@@ -164,11 +164,11 @@ def walk_packed(packed, dec):
     step = packed.frame_step
     for i in range(m):
         k = dec["kind"][i]
-        if k == K.LEAF:
+        if k == construct.LEAF:
             continue
         q0, q1 = dec["q"][i]
-        p0 = K.dequantize_plane(q0, packed.frame_lo[k], step[k])
-        p1 = K.dequantize_plane(q1, packed.frame_lo[k], step[k])
+        p0 = pack.dequantize_plane(q0, packed.frame_lo[k], step[k])
+        p1 = pack.dequantize_plane(q1, packed.frame_lo[k], step[k])
         c0, c1 = dec["child"][i]
         if c1 >= 0:
             boxes[c0] = boxes[i]
@@ -195,16 +195,16 @@ def test_pack_decode_round_trip(variant, layout, chunk_depth):
         assert np.array_equal(dec["kind"], tree.kind)
         assert np.array_equal(dec["child"], tree.child)
         step = packed.frame_step
-        leaves = tree.kind == K.LEAF
-        assert np.array_equal(dec["density"][leaves], np.rint(tree.mean[leaves] * K.DENSITY_MAX))
-        g = (dec["grad"][leaves] - K.GRAD_ZERO) / K.GRAD_MAX * packed.grad_scale
-        assert np.all(np.abs(g - tree.grad[leaves]) <= 0.5 * packed.grad_scale / K.GRAD_MAX + 1e-12)
+        leaves = tree.kind == construct.LEAF
+        assert np.array_equal(dec["density"][leaves], np.rint(tree.mean[leaves] * pack.DENSITY_MAX))
+        g = (dec["grad"][leaves] - pack.GRAD_ZERO) / pack.GRAD_MAX * packed.grad_scale
+        assert np.all(np.abs(g - tree.grad[leaves]) <= 0.5 * packed.grad_scale / pack.GRAD_MAX + 1e-12)
         # Fixed-point planes: within one step, rounded outward.
         for i in np.flatnonzero(~leaves):
             a = tree.kind[i]
             for s in range(2):
                 x = tree.plane[i, s]
-                back = K.dequantize_plane(dec["q"][i, s], packed.frame_lo[a], step[a])
+                back = pack.dequantize_plane(dec["q"][i, s], packed.frame_lo[a], step[a])
                 if math.isinf(x):
                     assert back == x
                     continue
@@ -223,15 +223,15 @@ def test_pack_decode_round_trip(variant, layout, chunk_depth):
 
 def test_fixed_point_codes():
     lo, ext = 2.0, 10.0
-    assert K.quantize_plane(2.0, lo, ext, False) == K.Q_ZERO
-    assert K.quantize_plane(12.0, lo, ext, True) == K.Q_ONE
-    assert K.quantize_plane(math.inf, lo, ext, False) == K.Q_POS_INF
-    assert K.quantize_plane(-math.inf, lo, ext, True) == K.Q_NEG_INF
-    assert K.quantize_plane(-1e9, lo, ext, False) == 1 and K.quantize_plane(1e9, lo, ext, True) == 0xFFFE
+    assert pack.quantize_plane(2.0, lo, ext, False) == pack.Q_ZERO
+    assert pack.quantize_plane(12.0, lo, ext, True) == pack.Q_ONE
+    assert pack.quantize_plane(math.inf, lo, ext, False) == pack.Q_POS_INF
+    assert pack.quantize_plane(-math.inf, lo, ext, True) == pack.Q_NEG_INF
+    assert pack.quantize_plane(-1e9, lo, ext, False) == 1 and pack.quantize_plane(1e9, lo, ext, True) == 0xFFFE
     step = ext / 0x8000
     for x in np.random.default_rng(0).uniform(lo, lo + ext, 200):
-        up = K.dequantize_plane(K.quantize_plane(x, lo, ext, True), lo, step)
-        down = K.dequantize_plane(K.quantize_plane(x, lo, ext, False), lo, step)
+        up = pack.dequantize_plane(pack.quantize_plane(x, lo, ext, True), lo, step)
+        down = pack.dequantize_plane(pack.quantize_plane(x, lo, ext, False), lo, step)
         assert x <= up <= x + step and x - step <= down <= x
 
 
@@ -243,7 +243,7 @@ def test_ess_packed_leaves_are_bricks_exactly():
     assert idx.exact and idx.mode == "ess"
     dec = idx.packed.decode()
     boxes = walk_packed(idx.packed, dec)
-    leaves = dec["kind"] == K.LEAF
+    leaves = dec["kind"] == construct.LEAF
     assert np.all(boxes[leaves] % idx.brick == 0)  # planes exact in the padded frame
     occ = tf.classify(*(lambda s: (s.vmin, s.vmax))(vol.brick_stats(8)))
     assert idx.tree.elem_volume[0] == occ.sum() * 8 ** 3
@@ -300,9 +300,9 @@ def test_edge_cases_empty_single_identical():
     assert empty.n_nodes == 0 and empty.lod().n_nodes == 0 and empty.pack("chunks").nbytes == 0
     # single element: one leaf, exactly its box
     one = build_bih(make_elements([[1.0, 2.0, 3.0]], [[2.0, 2.5, 3.25]]))
-    assert one.n_nodes == 1 and one.kind[0] == K.LEAF
+    assert one.n_nodes == 1 and one.kind[0] == construct.LEAF
     assert np.array_equal(one.box[0], [1, 2, 3, 2, 2.5, 3.25])
-    assert one.pack().decode()["kind"].tolist() == [K.LEAF]
+    assert one.pack().decode()["kind"].tolist() == [construct.LEAF]
     # all elements identical: one leaf holding all of them
     same = build_bih(make_elements(np.ones((7, 3)), np.full((7, 3), 2.0)))
     assert same.n_nodes == 1 and same.count[0] == 7

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import sparsecast as sc
 from sparsecast.errors import ParameterError
-from sparsecast.index.kdtree import kernels as K
+from sparsecast.index.kdtree import occupancy
 from sparsecast.index.kdtree import CellOccupancy
 
 from synthetic import sparse_volume
@@ -262,4 +262,4 @@ def test_bad_options(blobs):
         sc.build_index(blobs, tf, "kdtree-shallow", min_frac=1.5)
     with pytest.raises(ParameterError):
         sc.build_index(blobs, tf, "kdtree-shallow", nope=1)
-    assert K.SVT_BRICK % 16 == 0
+    assert occupancy.SVT_BRICK % 16 == 0

@@ -15,7 +15,6 @@ def _brute(o, d, lo, hi, open_lo, open_hi, dt, k_max=400):
     """Lattice indices whose t passes every face's own test (t-space, per axis)."""
     ks = []
     for k in range(0, k_max):
-        t = k * dt
         ok = True
         for a in range(3):
             if d[a] == 0.0:

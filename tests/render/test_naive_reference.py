@@ -4,29 +4,18 @@ from the contract without the Numba kernels): images to 1e-5 per channel, sample
 Only float32 and uint8 volumes are rendered, to keep Numba compilations to a minimum.
 """
 
-
 from __future__ import annotations
 
-import math
 import zlib
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import sparsecast as sc
-from sparsecast import (
-    Camera,
-    ParameterError,
-    TransferFunction,
-    TransferFunctionError,
-    Volume,
-    VolumeDataError,
-)
-
-from render_helpers import *  # noqa: F401,F403  (scenes, TFs, cameras, reference comparison)
-from render_helpers import _CAMERA_NAMES, _ORIGIN, _SHAPE, _SPACING  # noqa: F401
+from sparsecast import Camera, TransferFunction, Volume
+from render_helpers import assert_matches_reference, random_volume, make_tfs, camera_set, scenes, _CAMERA_NAMES, _ORIGIN, _SHAPE, _SPACING
+from reference import expected_sample_count
 
 
 # ---------------------------------------------------------------------------------

@@ -1,29 +1,14 @@
 """Bad input to ``render()`` and the objects it takes: one clear error each.
 """
 
-
 from __future__ import annotations
-
-import math
-import zlib
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import sparsecast as sc
-from sparsecast import (
-    Camera,
-    ParameterError,
-    TransferFunction,
-    TransferFunctionError,
-    Volume,
-    VolumeDataError,
-)
-
-from render_helpers import *  # noqa: F401,F403  (scenes, TFs, cameras, reference comparison)
-from render_helpers import _CAMERA_NAMES, _ORIGIN, _SHAPE, _SPACING  # noqa: F401
+from sparsecast import Camera, ParameterError, TransferFunction, TransferFunctionError, Volume, VolumeDataError
+from render_helpers import assert_matches_reference, random_volume
 
 
 # ---------------------------------------------------------------------------------

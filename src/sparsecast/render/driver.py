@@ -27,7 +27,7 @@ from ..index.interval import coalesces, integrate, make_scratch, next_interval, 
 from ..kernels.camera import index_space_ray
 from ..kernels.ray import clip_lattice
 from ..kernels.shade import write_pixel
-from ..kernels.tiles import tile_bounds, tile_count
+from ..kernels.tiles import tile_bounds
 
 __all__ = ["dvr_tile", "dvr_tiles"]
 

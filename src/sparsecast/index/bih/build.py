@@ -55,7 +55,7 @@ from ...elements import Elements, brick_elements, check_unit, voxel_elements
 from ...errors import ParameterError
 from ..base import SpatialIndex, View
 from ..registry import register_index
-from . import kernels as K
+from . import construct, lod, pack
 from .integrate import MODE_MULTI, MODE_SINGLE
 from .traversal import BihApproxRecord, BihRecord, decode_inner
 
@@ -114,7 +114,7 @@ class BIHTree:
 
     @property
     def n_leaves(self) -> int:
-        return int((self.kind == K.LEAF).sum())
+        return int((self.kind == construct.LEAF).sum())
 
     @property
     def max_depth(self) -> int:
@@ -123,7 +123,7 @@ class BIHTree:
     @property
     def n_single(self) -> int:
         """Inner nodes with one child."""
-        return int(((self.kind != K.LEAF) & (self.child[:, 1] < 0)).sum())
+        return int(((self.kind != construct.LEAF) & (self.child[:, 1] < 0)).sum())
 
     def stats(self) -> dict:
         m = self.n_nodes
@@ -149,14 +149,14 @@ class BIHTree:
             raise ParameterError(f"max_std: expected a non-negative standard deviation, got {max_std!r}")
         t0 = time.perf_counter()
         keep = np.empty(self.n_nodes, np.int64)
-        K.lod_cut(self.kind, self.child, self.box, self.count, self.elem_volume, self.mean, self.var * self.count,
+        lod.lod_cut(self.kind, self.child, self.box, self.count, self.elem_volume, self.mean, self.var * self.count,
                   md, mf, ms, keep)
         k = int((keep >= 0).sum())
         new_child = np.empty((k, 2), np.int64)
         depth = np.zeros(k, np.int64)
-        old = K.compact_cut(keep, self.child, new_child, depth)
+        old = lod.compact_cut(keep, self.child, new_child, depth)
         kind = self.kind[old].copy()
-        kind[keep[old] == 1] = K.LEAF
+        kind[keep[old] == 1] = construct.LEAF
         out = BIHTree(kind, new_child, self.plane[old], self.box[old], self.first[old], self.count[old], depth,
                       self.elem_volume[old], self.mean[old], self.var[old], self.grad[old], self.perm,
                       self.elements, self.variant)
@@ -181,24 +181,24 @@ class BIHTree:
             slot_of = np.arange(m, dtype=np.int64)
             slots = m
             if m:
-                K.preorder_fields(self.child, field_of)
+                pack.preorder_fields(self.child, field_of)
         else:
             slot_of = np.empty(m, np.int64)
-            slots = int(K.chunk_layout(self.child, cd, slot_of, field_of))
-        leaves = self.kind == K.LEAF
+            slots = int(pack.chunk_layout(self.child, cd, slot_of, field_of))
+        leaves = self.kind == construct.LEAF
         g = self.grad[leaves]
         grad_scale = float(np.abs(g).max()) if g.size else 1.0
         grad_scale = grad_scale if grad_scale > 0 else 1.0
         out = np.zeros(slots, np.int64)
         if m:
-            K.pack_nodes(self.kind.astype(np.int64), self.child, self.plane, self.mean, self.grad, self.first,
+            pack.pack_nodes(self.kind.astype(np.int64), self.child, self.plane, self.mean, self.grad, self.first,
                          self.count, el.frame_lo, el.frame_ext, grad_scale, el.kind == "particles",
                          slot_of, field_of, out)
         root_box = np.zeros(6)
         if m:
             for a in range(3):
-                root_box[a] = _dq(K.quantize_plane(self.box[0, a], el.frame_lo[a], el.frame_ext[a], False), el, a)
-                root_box[3 + a] = _dq(K.quantize_plane(self.box[0, 3 + a], el.frame_lo[a], el.frame_ext[a], True),
+                root_box[a] = _dq(pack.quantize_plane(self.box[0, a], el.frame_lo[a], el.frame_ext[a], False), el, a)
+                root_box[3 + a] = _dq(pack.quantize_plane(self.box[0, 3 + a], el.frame_lo[a], el.frame_ext[a], True),
                                       el, a)
         packed = PackedBIH(out.view(np.uint64), layout, cd, el.frame_lo.copy(), el.frame_ext.copy(), root_box,
                            grad_scale, self.max_depth, m)
@@ -207,7 +207,7 @@ class BIHTree:
 
 
 def _dq(q: int, el: Elements, a: int) -> float:
-    return float(K.dequantize_plane(q, el.frame_lo[a], el.frame_ext[a] / (K.Q_ONE - K.Q_ZERO)))
+    return float(pack.dequantize_plane(q, el.frame_lo[a], el.frame_ext[a] / (pack.Q_ONE - pack.Q_ZERO)))
 
 
 @dataclass
@@ -250,7 +250,7 @@ class PackedBIH:
     @property
     def frame_step(self) -> np.ndarray:
         """World/index distance of one plane code step per axis."""
-        return self.frame_ext / float(K.Q_ONE - K.Q_ZERO)
+        return self.frame_ext / float(pack.Q_ONE - pack.Q_ZERO)
 
     @property
     def nbytes(self) -> int:
@@ -296,7 +296,7 @@ class PackedBIH:
             word = int(w[slot])
             k = (word >> 62) & 3
             kind[i] = k
-            if k == K.LEAF:
+            if k == construct.LEAF:
                 dens[i] = (word >> 48) & 0x3FFF
                 for a in range(3):
                     grad[i, a] = (word >> (16 * a)) & 0xFFFF
@@ -305,10 +305,10 @@ class PackedBIH:
                 continue
             axis, c0, c1, single, q0, q1 = decode_inner(w, slot, self.preorder)
             if single:
-                if q1 == K.Q_POS_INF:
-                    q[i] = (K.Q_NEG_INF, q0)
-                elif q0 == K.Q_NEG_INF:
-                    q[i] = (q1, K.Q_POS_INF)
+                if q1 == pack.Q_POS_INF:
+                    q[i] = (pack.Q_NEG_INF, q0)
+                elif q0 == pack.Q_NEG_INF:
+                    q[i] = (q1, pack.Q_POS_INF)
                 else:
                     q[i] = (q0, q1)
                 stack.append((int(c0), i, 0))
@@ -343,7 +343,7 @@ def build_bih(elements: Elements, variant: str = "elaborate") -> BIHTree:
     node_i = np.empty((cap, 6), np.int64)
     node_f = np.empty((cap, 2), np.float64)
     node_box = np.empty((cap, 6), np.float64)
-    m, node_i, node_f, node_box = K.build(lo, hi, VARIANTS.index(variant), node_i, node_f, node_box, perm)
+    m, node_i, node_f, node_box = construct.build(lo, hi, VARIANTS.index(variant), node_i, node_f, node_box, perm)
     node_i = node_i[:m]
     kind = node_i[:, 0].astype(np.int8)
     child = np.ascontiguousarray(node_i[:, 1:3])
@@ -356,7 +356,7 @@ def build_bih(elements: Elements, variant: str = "elaborate") -> BIHTree:
     grad = np.empty((m, 3))
     evol = np.prod(hi - lo, axis=1)
     if m:
-        K.node_stats(kind, child, first, count, evol, elements.density[perm], elements.gradient[perm],
+        lod.node_stats(kind, child, first, count, evol, elements.density[perm], elements.gradient[perm],
                      vol, mean, m2, grad)
     var = m2 / np.maximum(count, 1)
     tree = BIHTree(kind, child, np.ascontiguousarray(node_f[:m]), np.ascontiguousarray(node_box[:m]), first,

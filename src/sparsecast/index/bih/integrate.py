@@ -22,7 +22,7 @@ from numba.extending import overload
 from ...kernels.ray import lattice_range
 from ...kernels.shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 from ..interval import integrate, record_class
-from .kernels import DENSITY_MAX, GRAD_MAX, GRAD_ZERO
+from .pack import DENSITY_MAX, GRAD_MAX, GRAD_ZERO
 from .traversal import BihApproxRecord
 
 __all__ = ["MODE_SINGLE", "MODE_MULTI", "leaf_payload"]

@@ -28,7 +28,8 @@ from numba.extending import overload
 
 from ...kernels.ray import slab
 from ..interval import make_scratch, next_interval, record_class, start_ray
-from .kernels import LEAF, Q_NEG_INF, Q_POS_INF, dequantize_plane
+from .construct import LEAF
+from .pack import Q_NEG_INF, Q_POS_INF, dequantize_plane
 
 __all__ = ["BihRecord", "BihApproxRecord", "decode_inner", "node_kind", "traversal_arrays",
            "push_root", "next_leaf", "set_ray"]
@@ -80,7 +81,7 @@ class BihApproxRecord(NamedTuple):
 @njit(cache=True, inline="always")
 def decode_inner(nodes, i, preorder):
     """``(axis, first, second, single, q0, q1)`` of inner node ``i``; ``second`` is -1
-    for a single child. See :func:`sparsecast.index.bih.kernels.pack_nodes`."""
+    for a single child. See :func:`sparsecast.index.bih.pack.pack_nodes`."""
     w = nodes[i]
     axis = (w >> 62) & 3
     field = (w >> 32) & 0x3FFFFFFF

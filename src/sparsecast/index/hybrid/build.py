@@ -25,7 +25,7 @@ import numpy as np
 
 from ..base import View
 from ..grid.traversal import GridRecord
-from ..kdtree import kernels as K
+from ..kdtree import occupancy
 from ..kdtree.build import ShallowKdTree
 from ..registry import register_index
 from .traversal import HybridRecord
@@ -66,7 +66,7 @@ class HybridPreclassified(ShallowKdTree):
         shape = tuple(-(-n // self.cell) for n in (ncz, ncy, ncx))
         self.occupied = np.empty(shape, np.uint8)
         c = self.cells
-        K.block_occupancy(c.svt, c.bslot, c.bcount, self.cell, self.occupied)
+        occupancy.block_occupancy(c.svt, c.bslot, c.bcount, self.cell, self.occupied)
         self.build_phases["grid"] = (time.perf_counter() - t0) * 1e3
         self.nbytes += int(self.occupied.nbytes)
 

@@ -8,7 +8,7 @@ construction fast enough to redo on every TF change with summed-volume tables
 1. ``classify``: occupancy of every *cell* (unit cube between voxels) from the TF
    range query over its corners plus a one-voxel apron; bricks that the
    per-volume 8^3 brick ranges classify empty are skipped without reading voxels
-   (see :mod:`._kdtree_kernels`).
+   (see :mod:`.occupancy`).
 2. ``svt``: per 32^3 brick the occupied count, tight box and, for non-empty bricks
    only, a partial SVT (parallel over bricks).
 3. ``split``: greedy top-down construction minimising the summed volume of the
@@ -48,7 +48,8 @@ import numpy as np
 from ...errors import ParameterError
 from ..base import SpatialIndex, View
 from ..registry import register_index
-from . import kernels as K
+from . import occupancy
+from .split import build_tree
 from .traversal import KdListRecord, KdStackRecord
 
 __all__ = ["KdTree", "ShallowKdTree", "DeepKdTree", "CellOccupancy", "cell_occupancy"]
@@ -69,13 +70,13 @@ class CellOccupancy:
         nz, ny, nx = volume.shape
         ncz, ncy, ncx = (max(n - 1, 1) for n in (nz, ny, nx))
         t0 = time.perf_counter()
-        stats = volume.brick_stats(K.CLASSIFY_BRICK)  # cached per volume
+        stats = volume.brick_stats(occupancy.CLASSIFY_BRICK)  # cached per volume
         flags = tf.classify(stats.vmin, stats.vmax)  # 8^3 bricks that may hold occupied cells
         bricks = np.flatnonzero(flags)
         bmap = np.full(flags.shape, -1, np.int32)
         bmap.ravel()[bricks] = np.arange(bricks.size, dtype=np.int32)
         occ = np.zeros((bricks.size, 8, 8, 8), np.uint8)
-        K.classify_cells(volume.data, bricks, stats.vmin.ravel()[bricks], stats.vmax.ravel()[bricks],
+        occupancy.classify_cells(volume.data, bricks, stats.vmin.ravel()[bricks], stats.vmax.ravel()[bricks],
                          tf.prefix, float(tf.value_range[0]), float(tf.scale), ncz, ncy, ncx, occ)
         self.phases["classify"] = (time.perf_counter() - t0) * 1e3
         self._build_svts((ncz, ncy, ncx), bmap, occ)
@@ -103,16 +104,16 @@ class CellOccupancy:
         self.bmap = bmap
         self.occ_b = occ_b
         t1 = time.perf_counter()
-        S = K.SVT_BRICK
+        S = occupancy.SVT_BRICK
         nb = tuple(-(-n // S) for n in shape)
         self.bcount = np.empty(nb, np.int64)
         self.bbox = np.empty(nb + (6,), np.int64)
-        K.brick_counts(bmap, occ_b, *self._shape, self.bcount, self.bbox)
+        occupancy.brick_counts(bmap, occ_b, *self._shape, self.bcount, self.bbox)
         nonempty = self.bcount > 0
         self.bslot = np.full(nb, -1, np.int64)
         self.bslot[nonempty] = np.arange(int(nonempty.sum()))
         self.svt = np.empty((int(nonempty.sum()), S + 1, S + 1, S + 1), np.uint16)
-        K.build_svts(bmap, occ_b, self.bslot, self.svt)
+        occupancy.build_svts(bmap, occ_b, self.bslot, self.svt)
         self.phases["svt"] = (time.perf_counter() - t1) * 1e3
         self.n_occupied = int(self.bcount.sum())
 
@@ -141,7 +142,7 @@ class CellOccupancy:
         ncz, ncy, ncx = self._shape
         out = np.empty(6, np.int64)
         q = np.array([0, 0, 0, ncx, ncy, ncz], np.int64)
-        if not K.tight_box(self.svt, self.bslot, self.bcount, self.bbox, q, out, np.empty(6, np.int64)):
+        if not occupancy.tight_box(self.svt, self.bslot, self.bcount, self.bbox, q, out, np.empty(6, np.int64)):
             return None
         return out
 
@@ -149,12 +150,12 @@ class CellOccupancy:
         """Tight box of the occupied cells in ``box`` (6 ints, half-open), or None."""
         out = np.empty(6, np.int64)
         q = np.asarray(box, np.int64)
-        if not K.tight_box(self.svt, self.bslot, self.bcount, self.bbox, q, out, np.empty(6, np.int64)):
+        if not occupancy.tight_box(self.svt, self.bslot, self.bcount, self.bbox, q, out, np.empty(6, np.int64)):
             return None
         return out
 
     def count(self, box) -> int:
-        return int(K.box_count(self.svt, self.bslot, self.bcount, self.bbox, np.asarray(box, np.int64)))
+        return int(occupancy.box_count(self.svt, self.bslot, self.bcount, self.bbox, np.asarray(box, np.int64)))
 
 
 def cell_occupancy(volume, tf) -> CellOccupancy:
@@ -220,7 +221,7 @@ class KdTree(SpatialIndex):
             split = np.empty(cap, np.int64)
             child = np.empty(cap, np.int64)
             depth = np.empty(cap, np.int64)
-            n = K.build_tree(c.svt, c.bslot, c.bcount, c.bbox, root, self.deep, self.min_frac,
+            n = build_tree(c.svt, c.bslot, c.bcount, c.bbox, root, self.deep, self.min_frac,
                              self.min_leaf, self.bins, self.bin_levels, cap, box, axis, split, child, depth)
             if n >= 0:
                 break
