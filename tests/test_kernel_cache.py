@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import sparsecast
-from sparsecast import _kernel_cache
+from sparsecast import kernel_cache
 
 PACKAGE = Path(sparsecast.__file__).resolve().parent
 
@@ -17,16 +17,16 @@ PACKAGE = Path(sparsecast.__file__).resolve().parent
 def test_hash_changes_with_an_inlined_helper(tmp_path):
     copy = tmp_path / "pkg"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    before = _kernel_cache.source_hash(copy)
-    assert before == _kernel_cache.source_hash(PACKAGE)
+    before = kernel_cache.source_hash(copy)
+    assert before == kernel_cache.source_hash(PACKAGE)
     helper = copy / "kernels" / "sample.py"  # inlined into every marcher
     helper.write_text(helper.read_text() + "\n# an edit\n")
-    assert _kernel_cache.source_hash(copy) != before
+    assert kernel_cache.source_hash(copy) != before
     # Modules without Numba do not count (editing the CLI recompiles nothing).
     copy_cli = next(p for p in copy.rglob("*.py") if b"numba" not in p.read_bytes())
-    h = _kernel_cache.source_hash(copy)
+    h = kernel_cache.source_hash(copy)
     copy_cli.write_text(copy_cli.read_text() + "\n# an edit\n")
-    assert _kernel_cache.source_hash(copy) == h
+    assert kernel_cache.source_hash(copy) == h
 
 
 def _run(code: str, env: dict) -> str:
@@ -40,18 +40,18 @@ def _run(code: str, env: dict) -> str:
 def test_numba_uses_the_hashed_folder(tmp_path):
     code = ("import sparsecast as sc, numpy as np\n"
             "from numba.core import config\n"
-            "from sparsecast import _kernel_cache as k\n"
+            "from sparsecast import kernel_cache as k\n"
             "from sparsecast.kernels.ray import lattice_range\n"
             "lattice_range(0.0, 1.0, 0.5)\n"
             "print(config.CACHE_DIR, '|', k.cache_dir(), '|', lattice_range.stats.cache_path)")
     cfg, configured, used = _run(code, {"SPARSECAST_CACHE_DIR": str(tmp_path)}).split(" | ")
-    folder = tmp_path / f"kernels-{_kernel_cache.source_hash()}"
+    folder = tmp_path / f"kernels-{kernel_cache.source_hash()}"
     assert Path(cfg) == folder and Path(configured) == folder
     assert Path(used).is_relative_to(folder)
     assert any(folder.rglob("*.nbi"))  # the kernel's cache index landed there
 
 
 def test_off_keeps_numbas_default(tmp_path):
-    out = _run("import sparsecast; from sparsecast import _kernel_cache as k; print(k.cache_dir())",
+    out = _run("import sparsecast; from sparsecast import kernel_cache as k; print(k.cache_dir())",
                {"SPARSECAST_CACHE_DIR": "off"})
     assert out == "None"

@@ -9,9 +9,9 @@
 (64, 64, 4)
 """
 
-from . import _kernel_cache
+from . import kernel_cache
 
-_kernel_cache.configure()  # before any kernel module is imported (see _kernel_cache)
+kernel_cache.configure()  # before any kernel module is imported (see kernel_cache)
 
 from . import datasets  # noqa: E402
 from .camera import Camera

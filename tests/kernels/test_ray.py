@@ -47,11 +47,11 @@ def test_clip_lattice_matches_brute_force(o, d, lo, ext, open_lo, open_hi, dt):
         d = (1.0, d[1], d[2])
     lo = np.array(lo)
     hi = lo + np.array(ext)
-    k0, k1, t_lo, t_hi = clip_lattice(o, d, lo, hi, np.array(open_lo), np.array(open_hi), dt)
+    k0, k1, t_lo, t_hi = clip_lattice(*o, *d, *lo, *hi, *open_lo, *open_hi, True, dt)
     got = list(range(k0, k1 + 1))
     assert got == _brute(o, d, lo, hi, open_lo, open_hi, dt)
     # All faces closed: exactly the lattice range of clip_box's interval.
-    c0, c1, _, _ = clip_lattice(o, d, lo, hi, np.zeros(3, bool), np.zeros(3, bool), dt)
+    c0, c1, _, _ = clip_lattice(*o, *d, *lo, *hi, *(False,) * 6, False, dt)
     tn, tf = clip_box(*o, *d, *lo, *hi)
     r0, r1 = lattice_range(tn, tf, dt)
     assert (list(range(c0, c1 + 1))) == list(range(r0, r1 + 1))
@@ -59,8 +59,7 @@ def test_clip_lattice_matches_brute_force(o, d, lo, ext, open_lo, open_hi, dt):
 
 def test_axis_parallel_ray_on_a_face():
     lo, hi = np.zeros(3), np.full(3, 4.0)
-    closed = np.zeros(3, bool)
-    k0, k1, _, _ = clip_lattice((0.0, 2.0, -1.0), (0.0, 0.0, 1.0), lo, hi, closed, closed, 0.5)
+    k0, k1, _, _ = clip_lattice(0.0, 2.0, -1.0, 0.0, 0.0, 1.0, *lo, *hi, *(False,) * 6, False, 0.5)
     assert (k0, k1) == (2, 10)  # z from 0 to 4 at t = 1 .. 5
-    k0, k1, _, _ = clip_lattice((0.0, 2.0, -1.0), (0.0, 0.0, 1.0), lo, hi, np.array([True, False, False]), closed, 0.5)
+    k0, k1, _, _ = clip_lattice(0.0, 2.0, -1.0, 0.0, 0.0, 1.0, *lo, *hi, True, False, False, False, False, False, True, 0.5)
     assert k0 > k1  # the ray lies in the open x = 0 face

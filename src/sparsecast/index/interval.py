@@ -21,8 +21,12 @@ processes; a closure factory would recompile in every new process):
     prune subtrees against it (the LBVH does). Intervals may overlap, touch
     or extend past ``[t_lo, t_hi]``; the driver merges touching ones and
     clamps lattice indices to the clip.
-``integrate(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc)``
-    Composite one interval. The default, for every record whose class does not
+``integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,``
+``ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a)``
+    Composite one interval ``[t0, t1]`` onto the premultiplied ``(r, g, b, a)``
+    and return ``(r, g, b, a, k_next, n_samples, n_nonempty)``. Arguments are
+    plain arrays and scalars (no records beyond the index's own): passing
+    records of arrays to a call costs reference-count atomics per interval. The default, for every record whose class does not
     set ``LATTICE = False``, is the exact lattice march
     (:func:`sparsecast.kernels.march.march_interval`); approximate indices (the
     BIH's single- and multi-sample modes) overload it for their record.
@@ -66,7 +70,8 @@ def next_interval(record, scratch, ray, state, t_covered):  # pragma: no cover
     raise NotImplementedError("next_interval is only callable from jitted code")
 
 
-def integrate(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):  # pragma: no cover
+def integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
+              ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):  # pragma: no cover
     """Composite one interval (see the module docstring)."""
     raise NotImplementedError("integrate is only callable from jitted code")
 
@@ -88,7 +93,7 @@ def _lattice(numba_type) -> bool:
     return bool(getattr(record_class(numba_type), "LATTICE", True))
 
 
-@overload(coalesces, jit_options={"cache": True})
+@overload(coalesces, jit_options={"cache": True}, inline="always")
 def _coalesces(record):
     if record_class(record) is None:
         return None
@@ -97,7 +102,7 @@ def _coalesces(record):
     return lambda record: False
 
 
-@overload(make_scratch, jit_options={"cache": True})
+@overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _no_scratch(record):
     cls = record_class(record)
     if cls is None or getattr(cls, "SCRATCH", False):
@@ -109,20 +114,17 @@ def _no_scratch(record):
     return impl
 
 
-@overload(integrate, jit_options={"cache": True})
-def _integrate_lattice(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
+@overload(integrate, jit_options={"cache": True, "error_model": "numpy"})
+def _integrate_lattice(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+                       shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
     if record_class(record) is None or not _lattice(record):
         return None
 
-    def impl(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
-        flat, nx, ny, nz = vol
-        ox, oy, oz, dx, dy, dz = ray
-        wdx, wdy, wdz = wdir
-        r, g, b, a = acc
+    def impl(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+             shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
         return march_interval(
-            flat, nx, ny, nz, frame.table, frame.v_lo, frame.scale, ox, oy, oz, dx, dy, dz,
-            wdx, wdy, wdz, frame.inv_spacing, frame.dt, t0, t1, k_next, k_max, r, g, b, a,
-            frame.ert, frame.shading,
+            flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+            wdx, wdy, wdz, inv_spacing, dt, t0, t1, k_next, k_max, r, g, b, a, ert, shading,
         )
 
     return impl

@@ -99,21 +99,23 @@ def _k_from_far(t, dt, open_face):
     return int(math.floor(q))
 
 
-@njit(cache=True)
-def clip_lattice(o, d, lo, hi, open_lo, open_hi, dt):
+@njit(cache=True, inline="always")
+def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt):
     """Lattice samples of a ray inside a box whose faces may be half-open.
 
     Parameters
     ----------
-    o, d : tuple of 3 floats
+    ox, oy, oz, dx, dy, dz : float
         Index-space ray origin and direction.
-    lo, hi : (3,) float64
-        Box corners (x, y, z).
-    open_lo, open_hi : (3,) bool
-        Faces that do not contain their plane: a sample exactly on an open face
-        is outside. Two boxes that share a face, one with it open, the other with
-        it closed, therefore never both take a sample on it (each decides from the
-        same ``(plane - o) / d``, with complementary rules).
+    x0, y0, z0, x1, y1, z1 : float
+        Box corners.
+    ox0, oy0, oz0, ox1, oy1, oz1 : bool
+        Open faces (lower x, y, z; upper x, y, z): a sample exactly on an open
+        face is outside. Two boxes that share a face, one with it open, the other
+        with it closed, therefore never both take a sample on it (each decides
+        from the same ``(plane - o) / d``, with complementary rules).
+    any_open : bool
+        Whether any face is open (all closed: the fast path, one slab pass).
     dt : float
         Lattice step.
 
@@ -128,39 +130,48 @@ def clip_lattice(o, d, lo, hi, open_lo, open_hi, dt):
     Notes
     -----
     Each face bounds ``k`` on its own and the bounds are intersected. With every
-    face closed this equals ``lattice_range`` of the box's ``clip_box`` interval:
+    face closed this is ``lattice_range`` of the box's ``clip_box`` interval:
     ``ceil`` and ``floor`` are monotone, so the bound of the limiting face is the
-    bound of the interval.
+    bound of the interval. Scalars only: no array in the per-ray path.
     """
-    t_lo = 0.0
-    t_hi = math.inf
-    for a in range(3):
-        inv, flat = inverse(d[a])
-        if flat:
-            if o[a] < lo[a] or o[a] > hi[a] or (open_lo[a] and o[a] == lo[a]) or (open_hi[a] and o[a] == hi[a]):
-                return 1, 0, 1.0, 0.0
-        else:
-            t_lo, t_hi = slab(o[a], inv, flat, lo[a], hi[a], t_lo, t_hi)
+    ix, fx = inverse(dx)
+    iy, fy = inverse(dy)
+    iz, fz = inverse(dz)
+    t_lo, t_hi = slab(ox, ix, fx, x0, x1, 0.0, math.inf)
+    t_lo, t_hi = slab(oy, iy, fy, y0, y1, t_lo, t_hi)
+    t_lo, t_hi = slab(oz, iz, fz, z0, z1, t_lo, t_hi)
     if t_lo > t_hi:
         return 1, 0, t_lo, t_hi
-    k_lo = _k_from_near(t_lo, dt, False) if t_lo > 0.0 else 0
-    k_hi = _k_from_far(t_hi, dt, False)
-    for a in range(3):
-        inv, flat = inverse(d[a])
-        if flat or not (open_lo[a] or open_hi[a]):
-            continue
-        t_a = (lo[a] - o[a]) * inv
-        t_b = (hi[a] - o[a]) * inv
-        o_a = open_lo[a]
-        o_b = open_hi[a]
-        if inv < 0.0:
-            t_a, t_b = t_b, t_a
-            o_a, o_b = o_b, o_a
-        # A face more than one step outside the interval cannot tighten its
-        # bound (ceil / floor are monotone); skipping it also keeps ``int()``
-        # away from the huge t of nearly parallel axes.
-        if o_a and t_a >= 0.0 and t_a >= t_lo - dt:
-            k_lo = max(k_lo, _k_from_near(t_a, dt, True))
-        if o_b and t_b <= t_hi + dt:
-            k_hi = min(k_hi, _k_from_far(t_b, dt, True))
+    k_lo = int(math.ceil(t_lo / dt))
+    k_hi = int(math.floor(t_hi / dt))
+    if any_open:
+        k_lo, k_hi = _open_face(ox, ix, fx, x0, x1, ox0, ox1, dt, t_lo, t_hi, k_lo, k_hi)
+        k_lo, k_hi = _open_face(oy, iy, fy, y0, y1, oy0, oy1, dt, t_lo, t_hi, k_lo, k_hi)
+        k_lo, k_hi = _open_face(oz, iz, fz, z0, z1, oz0, oz1, dt, t_lo, t_hi, k_lo, k_hi)
     return k_lo, k_hi, t_lo, t_hi
+
+
+@njit(cache=True)
+def _open_face(o, inv, flat, lo, hi, open_lo, open_hi, dt, t_lo, t_hi, k_lo, k_hi):
+    """Tighten ``[k_lo, k_hi]`` by one axis's open faces (see :func:`clip_lattice`)."""
+    if flat:
+        if (open_lo and o == lo) or (open_hi and o == hi):
+            return 1, 0
+        return k_lo, k_hi
+    if not (open_lo or open_hi):
+        return k_lo, k_hi
+    t_a = (lo - o) * inv
+    t_b = (hi - o) * inv
+    o_a = open_lo
+    o_b = open_hi
+    if inv < 0.0:
+        t_a, t_b = t_b, t_a
+        o_a, o_b = o_b, o_a
+    # A face more than one step outside the interval cannot tighten its bound
+    # (ceil / floor are monotone); skipping it also keeps ``int()`` away from the
+    # huge t of nearly parallel axes.
+    if o_a and t_a >= 0.0 and t_a >= t_lo - dt:
+        k_lo = max(k_lo, _k_from_near(t_a, dt, True))
+    if o_b and t_b <= t_hi + dt:
+        k_hi = min(k_hi, _k_from_far(t_b, dt, True))
+    return k_lo, k_hi

@@ -159,6 +159,7 @@ def render(
         table=np.ascontiguousarray(tf.opacity_table(dt, unit), dtype=np.float32),
         v_lo=float(tf.value_range[0]), scale=float(tf.scale),
         clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
+        any_open=bool(open_lo.any() or open_hi.any()),
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
     data = volume.data

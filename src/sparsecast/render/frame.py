@@ -40,6 +40,8 @@ class Frame(NamedTuple):
         Index-space clip box (already intersected with the volume box).
     open_lo, open_hi : (3,) bool
         Clip faces that exclude samples lying exactly on them.
+    any_open : bool
+        Whether any clip face is open.
     """
 
     cam: np.ndarray
@@ -60,3 +62,4 @@ class Frame(NamedTuple):
     clip_hi: np.ndarray
     open_lo: np.ndarray
     open_hi: np.ndarray
+    any_open: bool

@@ -61,43 +61,41 @@ def _composite(table, v, v_lo, scale, seg_steps, gx, gy, gz, wdx, wdy, wdz, inv_
     return r + w * cr, g + w * cg, b + w * cb, a + w, True
 
 
-@overload(integrate, jit_options={"cache": True})
-def _integrate(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
+@overload(integrate, jit_options={"cache": True, "error_model": "numpy"})
+def _integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
+               ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
     if record_class(record) is not BihApproxRecord:
         return None
 
-    def impl(record, scratch, state, vol, frame, ray, wdir, t0, t1, k_next, k_max, acc):
+    def impl(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
+             ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
         leaf = state[1]
         leaf_box = scratch[3]
-        ox, oy, oz, dx, dy, dz = ray
-        wdx, wdy, wdz = wdir
-        r, g, b, a = acc
         n_samples = 0
         n_nonempty = 0
         dc, gx, gy, gz = leaf_payload(record.tree.nodes, leaf, record.grad_scale)
         cx = 0.5 * (leaf_box[0] + leaf_box[3])
         cy = 0.5 * (leaf_box[1] + leaf_box[4])
         cz = 0.5 * (leaf_box[2] + leaf_box[5])
-        table = frame.table
+        d_lo = record.d_lo
+        d_span = record.d_span
         if record.mode == MODE_SINGLE:
             if t1 > t0:
                 tm = 0.5 * (t0 + t1)
                 d = dc + gx * (ox + tm * dx - cx) + gy * (oy + tm * dy - cy) + gz * (oz + tm * dz - cz)
-                r, g, b, a, hit = _composite(table, record.d_lo + d * record.d_span, frame.v_lo, frame.scale,
-                                             (t1 - t0) / frame.dt, gx, gy, gz, wdx, wdy, wdz,
-                                             frame.inv_spacing, frame.shading, r, g, b, a)
+                r, g, b, a, hit = _composite(table, d_lo + d * d_span, v_lo, scale, (t1 - t0) / dt,
+                                             gx, gy, gz, wdx, wdy, wdz, inv_spacing, shading, r, g, b, a)
                 n_samples += 1
                 n_nonempty += hit
             return r, g, b, a, k_next, n_samples, n_nonempty
-        k0, k1 = lattice_range(t0, t1, frame.dt)
+        k0, k1 = lattice_range(t0, t1, dt)
         k = max(k0, k_next)
         k1 = min(k1, k_max)
-        while k <= k1 and a < frame.ert:
-            t = k * frame.dt
+        while k <= k1 and a < ert:
+            t = k * dt
             d = dc + gx * (ox + t * dx - cx) + gy * (oy + t * dy - cy) + gz * (oz + t * dz - cz)
-            r, g, b, a, hit = _composite(table, record.d_lo + d * record.d_span, frame.v_lo, frame.scale, 1.0,
-                                         gx, gy, gz, wdx, wdy, wdz, frame.inv_spacing, frame.shading,
-                                         r, g, b, a)
+            r, g, b, a, hit = _composite(table, d_lo + d * d_span, v_lo, scale, 1.0,
+                                         gx, gy, gz, wdx, wdy, wdz, inv_spacing, shading, r, g, b, a)
             n_samples += 1
             n_nonempty += hit
             k += 1

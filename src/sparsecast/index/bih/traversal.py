@@ -238,7 +238,7 @@ def tree_of(record):  # pragma: no cover - jitted only
     raise NotImplementedError
 
 
-@overload(tree_of, jit_options={"cache": True})
+@overload(tree_of, jit_options={"cache": True}, inline="always")
 def _tree_of(record):
     cls = record_class(record)
     if cls is BihRecord:
@@ -251,13 +251,13 @@ def _is_bih(record) -> bool:
     return record_class(record) in (BihRecord, BihApproxRecord)
 
 
-@overload(make_scratch, jit_options={"cache": True})
+@overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _scratch(record):
     if _is_bih(record):
         return lambda record: traversal_arrays(tree_of(record).depth)
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     if _is_bih(record):
 
@@ -274,7 +274,7 @@ def _start(record, scratch, ray, t_lo, t_hi):
         return impl
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     if _is_bih(record):
 

@@ -150,13 +150,13 @@ def dda_next(grid, state):
     return math.inf, -math.inf, (cx, cy, cz, sx, sy, sz, tmx, tmy, tmz, tdx, tdy, tdz, t_enter, t_end, True)
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     if record_class(record) is GridRecord:
         return lambda record, scratch, ray, t_lo, t_hi: dda_start(record, ray, t_lo, t_hi)
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     if record_class(record) is GridRecord:
         return lambda record, scratch, ray, state, t_covered: dda_next(record, state)

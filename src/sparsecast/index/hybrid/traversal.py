@@ -29,7 +29,7 @@ class HybridRecord(NamedTuple):
     grid: GridRecord
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     if record_class(record) is HybridRecord:
 
@@ -41,7 +41,7 @@ def _start(record, scratch, ray, t_lo, t_hi):
         return impl
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     if record_class(record) is HybridRecord:
 

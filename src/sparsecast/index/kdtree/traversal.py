@@ -98,7 +98,7 @@ def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     return math.inf, -math.inf, j
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     cls = record_class(record)
     if cls is KdListRecord:
@@ -115,13 +115,13 @@ def _start(record, scratch, ray, t_lo, t_hi):
         return impl
 
 
-@overload(make_scratch, jit_options={"cache": True})
+@overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _scratch(record):
     if record_class(record) is KdStackRecord:
         return lambda record: np.empty(record.stack_size, np.int32)
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     cls = record_class(record)
     if cls is KdListRecord:

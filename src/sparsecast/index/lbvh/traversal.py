@@ -92,7 +92,7 @@ def _node_interval(box, node, ox, oy, oz, ix, iy, iz, fx, fy, fz, sx, sy, sz):
     return tn, tf
 
 
-@overload(make_scratch, jit_options={"cache": True})
+@overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _scratch(record):
     if record_class(record) is LbvhRecord:
 
@@ -104,7 +104,7 @@ def _scratch(record):
         return impl
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     if record_class(record) is LbvhRecord:
 
@@ -128,7 +128,7 @@ def _start(record, scratch, ray, t_lo, t_hi):
         return impl
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     if record_class(record) is LbvhRecord:
 

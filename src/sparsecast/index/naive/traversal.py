@@ -18,13 +18,13 @@ class NaiveRecord(NamedTuple):
     unused: int = 0
 
 
-@overload(start_ray, jit_options={"cache": True})
+@overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     if record_class(record) is NaiveRecord:
         return lambda record, scratch, ray, t_lo, t_hi: (t_lo, t_hi, False)
 
 
-@overload(next_interval, jit_options={"cache": True})
+@overload(next_interval, jit_options={"cache": True}, inline="always")
 def _next(record, scratch, ray, state, t_covered):
     if record_class(record) is NaiveRecord:
 
