@@ -21,7 +21,7 @@ import numpy as np
 
 from sparsecast import Camera
 from sparsecast.bench.datasets import find_shared_data
-from sparsecast.io.atomic import atomic_path
+from sparsecast._atomic import atomic_path
 from sparsecast.io.meshes import load_mesh
 from sparsecast.surface import build_rbvh, raycast
 from sparsecast.surface.atlas import atlas_texels, read_layer

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import FileFormatError, ParameterError, SparsecastError
 from ..volume import Volume
-from .atomic import atomic_path
+from .._atomic import atomic_path
 
 __all__ = [
     "load_volume",

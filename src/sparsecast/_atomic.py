@@ -8,7 +8,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..errors import ParameterError
+from .errors import ParameterError
 
 __all__ = ["atomic_path"]
 
