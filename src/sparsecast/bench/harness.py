@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..camera import Camera
-from ..errors import ParameterError
+from ..cli.parse import parse_index_spec
 from ..index import available_indices, build_index
 from ..renderers import render
 from ..transfer import TransferFunction
@@ -34,7 +34,7 @@ from .progress import Progress, ResultStore
 from .suites import Suite, view_name
 from .timing import median_ms
 
-__all__ = ["BenchConfig", "run_benchmarks", "finished_records", "machine_info", "parse_method", "dense_tf",
+__all__ = ["BenchConfig", "run_benchmarks", "finished_records", "machine_info", "dense_tf",
            "add_ratios"]
 
 
@@ -135,36 +135,6 @@ def machine_info() -> dict[str, Any]:
     }
 
 
-_LITERALS = {"none": None, "true": True, "false": False}
-
-
-def parse_method(spec: str) -> tuple[str, dict[str, Any]]:
-    """``"grid-pc:cell=8"`` -> ``("grid-pc", {"cell": 8})``.
-
-    Values are parsed as None/True/False, int, float, or else kept as strings.
-    """
-    name, _, opts = spec.partition(":")
-    options: dict[str, Any] = {}
-    for item in filter(None, opts.split(",")):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise ParameterError(f"method {spec!r}: expected name:key=value[,key=value], got {item!r}")
-        if value.lower() in _LITERALS:
-            options[key] = _LITERALS[value.lower()]
-            continue
-        for conv in (int, float):
-            try:
-                options[key] = conv(value)
-                break
-            except ValueError:
-                continue
-        else:
-            options[key] = value
-    if name not in available_indices():
-        raise ParameterError(f"method {spec!r}: unknown index {name!r}; expected one of {', '.join(available_indices())}")
-    return name, options
-
-
 Record = dict[str, Any]
 _BLANK: Record = {
     "dataset": None, "tf": None, "method": None, "phase": None, "view": None, "ms": None,
@@ -238,7 +208,7 @@ class _Run:
         elif not isinstance(progress, Progress):
             progress = _CallbackProgress(progress)
         self.progress = progress
-        self.methods = [(spec, *parse_method(spec)) for spec in config.methods]
+        self.methods = [(spec, *parse_index_spec(spec)) for spec in config.methods]
         self.peers = self._available_peers()
         self.sections = self._available_sections()
         self.datasets = []

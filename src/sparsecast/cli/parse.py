@@ -1,0 +1,132 @@
+"""Every parser of command-line values, in one place: image sizes, number lists, raw
+dims, spacing, backgrounds, index specs ``NAME:KEY=VALUE[,KEY=VALUE]`` and
+repeatable lists with ``none``.
+
+Each returns plain Python values or raises :class:`~sparsecast.errors.ParameterError`
+naming the option, what it found and what it expected (``sparsecast`` prints that as
+one line). Nothing here imports typer, so the benchmark harness, which reads its
+method specs in the same syntax as ``--method``, can use :func:`parse_index_spec`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional
+
+from ..errors import ParameterError
+
+__all__ = [
+    "parse_size", "parse_pair", "parse_numbers", "parse_dims", "parse_spacing", "parse_background",
+    "parse_index_spec", "none_list",
+]
+
+
+def parse_size(size: str) -> tuple[int, int]:
+    """``"640x480"`` -> ``(640, 480)``; one number means a square (``"512"``)."""
+    parts = size.lower().split("x")
+    try:
+        if len(parts) == 1:
+            w = h = int(parts[0])
+        elif len(parts) == 2:
+            w, h = int(parts[0]), int(parts[1])
+        else:
+            raise ValueError
+    except ValueError:
+        raise ParameterError(f"--size: expected WIDTHxHEIGHT like 512x512, got {size!r}") from None
+    return w, h
+
+
+def parse_pair(text: str, name: str) -> tuple[float, float]:
+    """``"lo,hi"`` -> ``(lo, hi)`` as floats (``name`` is the option, for the message)."""
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise ParameterError(f"{name}: expected two numbers 'lo,hi', got {text!r}") from None
+    return lo, hi
+
+
+def parse_numbers(text: str, name: str) -> tuple[float, ...]:
+    """``"1,0.5,0"`` -> ``(1.0, 0.5, 0.0)``: any count of comma-separated numbers."""
+    try:
+        return tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise ParameterError(f"{name}: expected comma-separated numbers, got {text!r}") from None
+
+
+def parse_dims(dims: str) -> tuple[int, ...]:
+    """``--dims`` ``"256x256x128"`` -> ``(256, 256, 128)`` (the loader checks there are three)."""
+    try:
+        return tuple(int(x) for x in dims.lower().split("x"))
+    except ValueError:
+        raise ParameterError(f"--dims: expected NXxNYxNZ like 256x256x128, got {dims!r}") from None
+
+
+def parse_spacing(spacing: str) -> float | list[float]:
+    """``--spacing`` ``"sx,sy,sz"`` -> a list, or one number -> that number (isotropic)."""
+    try:
+        vals = [float(x) for x in spacing.split(",")]
+    except ValueError:
+        raise ParameterError(f"--spacing: expected 'sx,sy,sz' or one number, got {spacing!r}") from None
+    return vals[0] if len(vals) == 1 else vals
+
+
+def parse_background(background: str) -> str | list[float]:
+    """``--background``: a colour name is passed on as it is, ``"r,g,b[,a]"`` as numbers
+    (the renderer checks both)."""
+    if "," in background:
+        return list(parse_numbers(background, "--background"))
+    return background
+
+
+_LITERALS = {"none": None, "true": True, "false": False}
+
+
+def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """``"grid-pc:cell=8"`` -> ``("grid-pc", {"cell": 8})``.
+
+    Values are parsed as None/True/False, int, float, or else kept as strings.
+
+    Parameters
+    ----------
+    spec : str
+        An index name (see :func:`sparsecast.available_indices`), optionally followed
+        by build options ``:key=value[,key=value]``.
+
+    Returns
+    -------
+    (str, dict)
+        The index name and its build options.
+
+    Raises
+    ------
+    ParameterError
+        An option without ``=``, or an unknown index name.
+    """
+    from ..index import available_indices  # deferred: the index registry loads the Numba kernels
+
+    name, _, opts = spec.partition(":")
+    options: dict[str, Any] = {}
+    for item in filter(None, opts.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise ParameterError(f"method {spec!r}: expected name:key=value[,key=value], got {item!r}")
+        if value.lower() in _LITERALS:
+            options[key] = _LITERALS[value.lower()]
+            continue
+        for conv in (int, float):
+            try:
+                options[key] = conv(value)
+                break
+            except ValueError:
+                continue
+        else:
+            options[key] = value
+    if name not in available_indices():
+        raise ParameterError(f"method {spec!r}: unknown index {name!r}; expected one of {', '.join(available_indices())}")
+    return name, options
+
+
+def none_list(values: Optional[list[str]]) -> Optional[list[str]]:
+    """Repeatable option values, with 'none' meaning an explicit empty list."""
+    if values is None:
+        return None
+    return [] if [v.lower() for v in values] == ["none"] else values
