@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from sparsecast import Camera
-from sparsecast.bench.datasets import find_shared_data
+from sparsecast.bench.shared_data import find_shared_data
 from sparsecast._atomic import atomic_path
 from sparsecast.io.meshes import load_mesh
 from sparsecast.surface import build_rbvh, raycast

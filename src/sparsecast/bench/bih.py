@@ -32,7 +32,7 @@ from ..index.bih import ParticleBIH, build_bih
 from ..elements import voxel_elements
 from ..renderers import render
 from ..renderers.particles import render_particles
-from .datasets import DATASETS
+from .catalog import DATASETS
 from .images import psnr
 from .timing import median_ms
 

@@ -26,7 +26,7 @@ from ..index import available_indices, build_index
 from ..renderers import render
 from ..transfer import TransferFunction
 from ..volume import Volume
-from .datasets import DATASETS
+from .catalog import DATASETS
 from .images import image_name, psnr, save_png
 from .irt import irt_build_times
 from .peers import PeerUnavailable, load_peer

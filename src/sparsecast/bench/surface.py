@@ -33,7 +33,7 @@ from ..surface.index import SurfaceIndex
 from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
 from ..surface.render import cast_camera, shade
 from ..surface.secondary import cosine_directions, facing
-from .datasets import find_shared_data
+from .shared_data import find_shared_data
 from .images import psnr
 from .timing import median_ms
 
