@@ -8,9 +8,9 @@ import pytest
 from PIL import Image as PILImage
 
 from sparsecast.bench.compare import compare_records, format_comparison
-from sparsecast.bench.harness import add_ratios
 from sparsecast.bench.markdown import markdown_report
 from sparsecast.bench.plots import write_plots
+from sparsecast.bench.ratios import add_ratios
 from sparsecast.bench.report import load_records
 from sparsecast.errors import FileFormatError
 from cli_runner import run_cli

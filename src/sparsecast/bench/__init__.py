@@ -8,7 +8,8 @@ Markdown report and figures in the papers' style.
 """
 
 from .catalog import DATASETS, BenchDataset
-from .harness import BenchConfig, run_benchmarks
+from .config import BenchConfig
+from .harness import run_benchmarks
 from .report import format_table, write_json
 from .shared_data import find_shared_data
 from .suites import SUITES, Suite

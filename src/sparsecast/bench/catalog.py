@@ -1,5 +1,6 @@
 """The benchmark's catalogue of named volumes (:data:`DATASETS`), each with the TF it is
-measured with: generated fields from :mod:`sparsecast.datasets` (the demo at three
+measured with (and :func:`dense_tf`, the TF with no empty space that every dataset is
+also measured with): generated fields from :mod:`sparsecast.datasets` (the demo at three
 sizes, the synthetic cluster sweeps of Fig. 5) and real files from the shared data
 folder (:func:`~.shared_data.find_shared_data`), which are skipped where it is absent.
 
@@ -18,7 +19,7 @@ from ..transfer import TransferFunction
 from ..volume import Volume
 from .shared_data import find_shared_data
 
-__all__ = ["BenchDataset", "DATASETS"]
+__all__ = ["BenchDataset", "DATASETS", "dense_tf"]
 
 
 @dataclass(frozen=True)
@@ -113,3 +114,11 @@ def _fig5_datasets() -> list[BenchDataset]:
 
 
 DATASETS.update({d.name: d for d in _fig5_datasets()})
+
+
+def dense_tf(vol: Volume) -> TransferFunction:
+    """A TF with non-zero opacity for every value: no empty space at all."""
+    lo, hi = vol.value_range
+    if hi <= lo:
+        hi = lo + 1.0
+    return TransferFunction([(lo, 0.2, 0.3, 0.8, 0.004), (hi, 1.0, 0.9, 0.6, 0.2)], (lo, hi), name="dense")

@@ -49,9 +49,10 @@ def bench(
         _compare(*compare)
         return
     from ..bench import format_table, run_benchmarks, write_json
-    from ..bench.report import format_summary
-    from ..bench.harness import BenchConfig, finished_records
+    from ..bench.config import BenchConfig
+    from ..bench.harness import finished_records
     from ..bench.progress import Progress, ResultStore
+    from ..bench.report import format_summary
     from ..bench.suites import get_suite, orbit_views
 
     plan = get_suite(suite or "quick")
