@@ -21,6 +21,11 @@ from cli_runner import run_cli
         (["render", "--background", "mauve", "--size", "8x8"], "background"),
         (["render", "does-not-exist.nrrd"], "does-not-exist.nrrd"),
         (["info", "volume.xyz"], "volume.xyz"),
+        (["bench", "--repeat", "0"], "--repeat"),
+        (["bench", "--warmup", "-1"], "--warmup"),
+        (["bench", "--views", "0"], "--views"),
+        (["render-mesh", "mesh.ply", "--mode", "xray"], "--mode"),
+        (["render-mesh", "mesh.ply", "--index", "kdtree"], "--index"),
     ],
 )
 def test_bad_input_is_one_clear_line(monkeypatch, capsys, tmp_path, args, names):

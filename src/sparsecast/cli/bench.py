@@ -11,6 +11,7 @@ from typing import Annotated, Optional
 import typer
 from rich.console import Console
 
+from .._checks import as_int, fail
 from ..errors import ParameterError
 from .app import app, err, out
 from .parse import none_list, parse_index_spec, parse_size
@@ -57,10 +58,12 @@ def bench(
 
     plan = get_suite(suite or "quick")
     sizes = [parse_size(s) for s in size] if size else None
-    if (repeat is not None and repeat < 1) or (warmup is not None and warmup < 0):
-        raise ParameterError(f"--repeat must be >= 1 and --warmup >= 0, got {repeat}, {warmup}")
-    if views is not None and views < 1:
-        raise ParameterError(f"--views: expected at least 1 view per axis, got {views}")
+    if repeat is not None:
+        as_int(repeat, "--repeat", lo=1)
+    if warmup is not None:
+        as_int(warmup, "--warmup", lo=0)
+    if views is not None:
+        as_int(views, "--views", lo=1, expected="at least 1 view per axis")
     cfg = BenchConfig.from_suite(
         plan, datasets=dataset, methods=method, sizes=sizes, repeat=repeat, warmup=warmup, dt=dt,
         dense_tf=dense, views=orbit_views(views) if views else None, peer_views=peer_views, dense_views=dense_views,
@@ -132,7 +135,7 @@ def _check_names(cfg) -> None:
             raise ParameterError(f"--peer: unknown peer {p!r}; expected one of {', '.join(PEERS)} or none")
     for s in cfg.sections:
         if not s.isidentifier():
-            raise ParameterError(f"--section: expected a module name like bih or surface, got {s!r}")
+            raise fail("--section", "a module name like bih or surface", s)
 
 
 def _compare(old: Path, new: Path) -> None:

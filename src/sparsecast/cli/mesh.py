@@ -8,6 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from .._checks import one_of
 from ..errors import ParameterError
 from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, ZoomOpt, app, out
 from .parse import parse_size
@@ -41,10 +42,8 @@ def render_mesh(
     from ..surface.mesh import icosphere, z_up
     from ..surface.render import MODES
 
-    if index not in INDICES:
-        raise ParameterError(f"--index: expected one of {', '.join(INDICES)}, got {index!r}")
-    if mode not in MODES:
-        raise ParameterError(f"--mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    one_of(index, "--index", INDICES)
+    one_of(mode, "--mode", MODES)
     if points and index != "rbvh":
         raise ParameterError("--points: point clouds are rendered with --index rbvh only")
     width, height = parse_size(size)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
+from .._checks import fail
 from ..errors import ParameterError
 
 __all__ = [
@@ -31,7 +32,7 @@ def parse_size(size: str) -> tuple[int, int]:
         else:
             raise ValueError
     except ValueError:
-        raise ParameterError(f"--size: expected WIDTHxHEIGHT like 512x512, got {size!r}") from None
+        raise fail("--size", "WIDTHxHEIGHT like 512x512", size) from None
     return w, h
 
 
@@ -40,7 +41,7 @@ def parse_pair(text: str, name: str) -> tuple[float, float]:
     try:
         lo, hi = (float(x) for x in text.split(","))
     except ValueError:
-        raise ParameterError(f"{name}: expected two numbers 'lo,hi', got {text!r}") from None
+        raise fail(name, "two numbers 'lo,hi'", text) from None
     return lo, hi
 
 
@@ -49,7 +50,7 @@ def parse_numbers(text: str, name: str) -> tuple[float, ...]:
     try:
         return tuple(float(x) for x in text.split(","))
     except ValueError:
-        raise ParameterError(f"{name}: expected comma-separated numbers, got {text!r}") from None
+        raise fail(name, "comma-separated numbers", text) from None
 
 
 def parse_dims(dims: str) -> tuple[int, ...]:
@@ -57,7 +58,7 @@ def parse_dims(dims: str) -> tuple[int, ...]:
     try:
         return tuple(int(x) for x in dims.lower().split("x"))
     except ValueError:
-        raise ParameterError(f"--dims: expected NXxNYxNZ like 256x256x128, got {dims!r}") from None
+        raise fail("--dims", "NXxNYxNZ like 256x256x128", dims) from None
 
 
 def parse_spacing(spacing: str) -> float | list[float]:
@@ -65,7 +66,7 @@ def parse_spacing(spacing: str) -> float | list[float]:
     try:
         vals = [float(x) for x in spacing.split(",")]
     except ValueError:
-        raise ParameterError(f"--spacing: expected 'sx,sy,sz' or one number, got {spacing!r}") from None
+        raise fail("--spacing", "'sx,sy,sz' or one number", spacing) from None
     return vals[0] if len(vals) == 1 else vals
 
 
@@ -108,7 +109,7 @@ def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
     for item in filter(None, opts.split(",")):
         key, eq, value = item.partition("=")
         if not eq:
-            raise ParameterError(f"method {spec!r}: expected name:key=value[,key=value], got {item!r}")
+            raise fail(f"method {spec!r}", "name:key=value[,key=value]", item)
         if value.lower() in _LITERALS:
             options[key] = _LITERALS[value.lower()]
             continue

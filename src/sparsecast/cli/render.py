@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from ..errors import ParameterError
+from .._checks import fail
 from .app import (
     AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
@@ -62,7 +62,7 @@ def render(
     img.save(output)
     if array is not None:
         if array.suffix.lower() != ".npy":
-            raise ParameterError(f"--array: expected a .npy file name, got {str(array)!r}")
+            raise fail("--array", "a .npy file name", str(array))
         img.save(array)
     s = img.stats
     out.print(

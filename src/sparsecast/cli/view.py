@@ -6,7 +6,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from ..errors import ParameterError
+from .._checks import as_int
 from .app import CellOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, err, out
 from .inputs import load_input, make_tf
 
@@ -37,8 +37,7 @@ def view(
     from ..viewer.session import ViewerData, spec_from_preset
 
     remote = check_host(host, allow_remote)
-    if not 0 <= port <= 65535:
-        raise ParameterError(f"--port: expected 0..65535 (0 picks a free port), got {port}")
+    as_int(port, "--port", 0, 65535, expected="0..65535 (0 picks a free port)")
     vol = load_input(file, dims, dtype, spacing)
     tfn = make_tf(tf, vol, tf_range, threshold)
     data = ViewerData.create(vol, tfn, index=index, cell=cell)

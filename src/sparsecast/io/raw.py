@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import as_int, fail, one_of
 from ..errors import FileFormatError, ParameterError
 from ..volume import Volume
 from .names import stem_of
@@ -139,18 +140,15 @@ def read_raw(path: Path, dims=None, dtype=None, byte_order: str = "little", head
                 f"or name the file like 'name_256x256x128_uint8.raw'"
             )
     try:
-        nx, ny, nz = (int(d) for d in dims)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"dims: expected 3 integers (nx, ny, nz), got {dims!r}") from exc
+        nx, ny, nz = (as_int(d, "dims") for d in dims)
+    except (TypeError, ValueError, ParameterError):  # not iterable, not 3, not integers
+        raise fail("dims", "3 integers (nx, ny, nz)", dims) from None
     if min(nx, ny, nz) <= 0:
-        raise ParameterError(f"dims: expected positive integers (nx, ny, nz), got {(nx, ny, nz)}")
+        raise fail("dims", "positive integers (nx, ny, nz)", (nx, ny, nz))
     dt = raw_dtype(dtype, f"{where} dtype")
-    if byte_order not in ("little", "big"):
-        raise ParameterError(f"byte_order: expected 'little' or 'big', got {byte_order!r}")
+    one_of(byte_order, "byte_order", ("little", "big"), expected="'little' or 'big'")
     dt = dt.newbyteorder("<" if byte_order == "little" else ">")
-    header_offset = int(header_offset)
-    if header_offset < 0:
-        raise ParameterError(f"header_offset: expected an integer >= 0, got {header_offset}")
+    header_offset = as_int(header_offset, "header_offset", lo=0)
     expected = nx * ny * nz * dt.itemsize + header_offset
     size = path.stat().st_size
     if size != expected:

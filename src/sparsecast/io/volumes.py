@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 
 from .._atomic import atomic_path
+from .._checks import one_of
 from ..errors import FileFormatError, ParameterError
 from ..volume import Volume
 from .formats import FORMATS, READ_SUFFIXES, WRITE_SUFFIXES
@@ -128,8 +129,7 @@ def load_volume(
     """
     p = Path(path)
     _check_exists(p)
-    if nonfinite not in ("raise", "replace"):
-        raise ParameterError(f"nonfinite: expected 'raise' or 'replace', got {nonfinite!r}")
+    one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
 
     suffix = suffix_of(p)
     fmt = None if p.is_dir() else FORMATS.get(suffix)
