@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from sparsecast import Camera
-from sparsecast.bench.datasets import find_shared_data
-from sparsecast.io.atomic import atomic_path
+from sparsecast.bench.shared_data import find_shared_data
+from sparsecast._util.atomic import atomic_path
 from sparsecast.io.meshes import load_mesh
 from sparsecast.surface import build_rbvh, raycast
 from sparsecast.surface.atlas import atlas_texels, read_layer

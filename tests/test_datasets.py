@@ -1,4 +1,4 @@
-"""Generated volumes and the benchmark dataset registry."""
+"""Generated data (sparsecast.datasets): deterministic, sparse, the shapes and dtypes asked for."""
 
 from __future__ import annotations
 
@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 import sparsecast as sc
-from sparsecast.bench.datasets import DATASETS, find_shared_data
 
 
 def test_nbody_blobs_is_deterministic_and_sparse():
@@ -35,19 +34,14 @@ def test_sphere_shell_is_hollow():
     assert v.data.max() == 1.0
 
 
-def test_find_shared_data_honours_env(monkeypatch, tmp_path):
-    monkeypatch.setenv("SPARSECAST_DATA", str(tmp_path))
-    assert find_shared_data() == tmp_path.resolve()
-
-
-def test_registry_demo_is_always_available():
-    assert DATASETS["demo"].available()
-    assert "mni152" in DATASETS
-
-
-def test_shared_dataset_skips_cleanly_without_data(monkeypatch, tmp_path):
-    monkeypatch.setenv("SPARSECAST_DATA", str(tmp_path))  # an empty folder
-    assert not DATASETS["mni152"].available()
+def test_random_clusters_balls():
+    v = sc.datasets.random_clusters(32, 3, 4.0, seed=1)
+    assert v.shape == (32, 32, 32) and v.dtype == np.float32
+    inside = v.data[v.data > 0]
+    assert inside.size and inside.min() >= 0.2 and inside.max() <= 1.0
+    # Three balls of radius 4 hold at most 3 * 257 voxels (the lattice points of one ball).
+    assert inside.size <= 3 * 257
+    assert np.array_equal(v.data, sc.datasets.random_clusters(32, 3, 4.0, seed=1).data)
 
 
 def test_volume_does_not_freeze_the_callers_array():

@@ -1,6 +1,9 @@
-"""Generated volumes: the built-in demo and synthetic test fields.
+"""Generated data: the built-in demo volume, synthetic test and benchmark fields, particles.
 
-Nothing here downloads anything; every generator is deterministic given its seed.
+This is the public ``sparsecast.datasets`` (``sc.datasets.nbody_blobs(64)``). Nothing
+here downloads or reads anything; every generator is deterministic given its seed.
+Which of these volumes the benchmark runs, under which names and TFs, is
+:mod:`sparsecast.bench.catalog`'s business.
 """
 
 from __future__ import annotations
@@ -10,7 +13,7 @@ import numpy as np
 from .errors import ParameterError
 from .volume import Volume
 
-__all__ = ["nbody_blobs", "sphere_shell", "demo_volume", "nbody_particles"]
+__all__ = ["nbody_blobs", "sphere_shell", "random_clusters", "demo_volume", "nbody_particles"]
 
 
 def nbody_blobs(
@@ -94,6 +97,41 @@ def sphere_shell(size: int = 64, *, radius: float = 0.35, thickness: float = 0.0
     d = np.abs(r - radius) - thickness / 2.0
     vals = np.clip(0.5 - d * (size - 1), 0.0, 1.0).astype(np.float32)
     return Volume(vals, name="sphere-shell")
+
+
+def random_clusters(n: int, n_clusters: int, radius: float, seed: int = 7) -> Volume:
+    """Balls of random voxel values: the synthetic sweeps of the hybrid-grids paper (Fig. 5).
+
+    Parameters
+    ----------
+    n : int
+        Grid size: the volume is ``n``^3 float32.
+    n_clusters : int
+        How many balls, at random centres (they may overlap or leave the grid).
+    radius : float
+        Ball radius in voxels (at least half a voxel).
+    seed : int
+        Random seed.
+
+    Returns
+    -------
+    Volume
+        Voxels inside a ball hold uniform random values in ``[0.2, 1]``, the rest 0.
+    """
+    rng = np.random.default_rng(seed)
+    data = np.zeros((n, n, n), np.float32)
+    r = max(float(radius), 0.5)
+    ri = int(np.ceil(r))
+    off = np.arange(-ri, ri + 1)
+    dz, dy, dx = np.meshgrid(off, off, off, indexing="ij")
+    ball = dz * dz + dy * dy + dx * dx <= r * r
+    pz, py, px = (a[ball] for a in (dz, dy, dx))
+    for _ in range(n_clusters):
+        c = rng.integers(0, n, 3)
+        z, y, x = pz + c[0], py + c[1], px + c[2]
+        keep = (z >= 0) & (z < n) & (y >= 0) & (y < n) & (x >= 0) & (x < n)
+        data[z[keep], y[keep], x[keep]] = rng.uniform(0.2, 1.0, int(keep.sum())).astype(np.float32)
+    return Volume(data)
 
 
 def demo_volume() -> Volume:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
+from ._util.checks import as_float, fail, unit_float
 from .errors import ParameterError
 from .kernels.sample import gradient as _gradient
 from .kernels.sample import trilinear
@@ -73,24 +74,17 @@ class Elements:
 
 
 def _check_resample(resample) -> float:
-    try:
-        r = float(resample)
-    except (TypeError, ValueError):
-        raise ParameterError(f"resample: expected one of {RESAMPLING}, got {resample!r}") from None
+    """``resample`` as one of :data:`RESAMPLING` (``2`` and ``"1.5"`` are fine too)."""
+    what = f"one of {RESAMPLING}"
+    r = as_float(resample, "resample", expected=what)
     if r not in RESAMPLING:
-        raise ParameterError(f"resample: expected one of {RESAMPLING}, got {resample!r}")
+        raise fail("resample", what, resample)
     return r
 
 
-def check_unit(value, name: str) -> float:
-    """``value`` as a float in [0, 1], or a ParameterError naming ``name``."""
-    try:
-        t = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name}: expected a number in [0, 1], got {value!r}") from None
-    if not 0.0 <= t <= 1.0:
-        raise ParameterError(f"{name}: expected a number in [0, 1], got {value!r}")
-    return t
+#: ``check_unit(value, name)``: ``value`` as a float in [0, 1], or a ParameterError
+#: naming ``name`` (the BIH imports it from here; new code uses ``_util.checks.unit_float``).
+check_unit = unit_float
 
 
 @njit(cache=True, parallel=True)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ParameterError
-from .io.atomic import atomic_path
+from ._util.atomic import atomic_path
 
 __all__ = ["Image"]
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FileFormatError, ParameterError, TransferFunctionError
-from .io.atomic import atomic_path
+from ._util.atomic import atomic_path
 from .kernels.classify import classify_ranges, entry_span, range_is_empty
 
 __all__ = ["TransferFunction", "PRESETS"]

@@ -14,7 +14,8 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import ParameterError, VolumeDataError
+from ._util.checks import as_int, one_of, vector3
+from .errors import VolumeDataError
 from .kernels.bricks import brick_minmax
 
 __all__ = ["Volume", "BrickStats", "SUPPORTED_DTYPES"]
@@ -62,19 +63,6 @@ class BrickStats:
         return int(self.vmin.nbytes + self.vmax.nbytes)
 
 
-def _as_triple(value, name: str, positive: bool) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.repeat(arr, 3)
-    if arr.shape != (3,):
-        raise ParameterError(f"{name}: expected 3 values (x, y, z), got {np.shape(value)}")
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name}: expected finite values, got {arr.tolist()}")
-    if positive and np.any(arr <= 0):
-        raise ParameterError(f"{name}: expected positive values, got {arr.tolist()}")
-    return arr
-
-
 class Volume:
     """A scalar volume: voxel array, spacing and origin.
 
@@ -99,6 +87,9 @@ class Volume:
     ------
     VolumeDataError
         Wrong number of dimensions, zero-size axis, unsupported dtype or NaN/Inf.
+    ParameterError
+        Spacing or origin not one or three finite numbers (spacing > 0), or an unknown
+        ``nonfinite`` policy.
 
     Examples
     --------
@@ -117,6 +108,7 @@ class Volume:
         name: str = "volume",
         nonfinite: NonFinitePolicy = "raise",
     ) -> None:
+        one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
         arr = np.asarray(data)
         if arr.ndim != 3:
             raise VolumeDataError(
@@ -131,8 +123,8 @@ class Volume:
         # but the caller's own array keeps its flags (no copy when contiguous).
         self._data = np.ascontiguousarray(arr).view()
         self._data.flags.writeable = False
-        self.spacing = _as_triple(spacing, "spacing", positive=True)
-        self.origin = _as_triple(origin, "origin", positive=False)
+        self.spacing = vector3(spacing, "spacing", positive=True)
+        self.origin = vector3(origin, "origin")
         self.name = name
         self._range: tuple[float, float] | None = None
         self._bricks: dict[int, BrickStats] = {}
@@ -208,9 +200,7 @@ class Volume:
         brick_size : int, optional
             Cells per brick edge (default 8).
         """
-        brick_size = int(brick_size)
-        if brick_size < 1:
-            raise ParameterError(f"brick_size: expected an integer >= 1, got {brick_size}")
+        brick_size = as_int(brick_size, "brick_size", lo=1)
         cached = self._bricks.get(brick_size)
         if cached is not None:
             return cached
@@ -275,8 +265,6 @@ def _check_finite(arr: np.ndarray, name: str, policy: str) -> np.ndarray:
             f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
             f"(pass nonfinite='replace' to substitute the finite min/max)"
         )
-    if policy != "replace":
-        raise ParameterError(f"nonfinite: expected 'raise' or 'replace', got {policy!r}")
     if not finite.any():
         raise VolumeDataError(f"{name}: every voxel is NaN or Inf; nothing to replace them with")
     lo = arr[finite].min()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from sparsecast.bench import DATASETS, BenchDataset
-from sparsecast.bench.harness import BenchConfig
+from sparsecast.bench.config import BenchConfig
 from sparsecast.datasets import nbody_blobs
 from sparsecast.transfer import TransferFunction
 

@@ -8,9 +8,9 @@ import pytest
 from PIL import Image as PILImage
 
 from sparsecast.bench.compare import compare_records, format_comparison
-from sparsecast.bench.harness import add_ratios
 from sparsecast.bench.markdown import markdown_report
 from sparsecast.bench.plots import write_plots
+from sparsecast.bench.ratios import add_ratios
 from sparsecast.bench.report import load_records
 from sparsecast.errors import FileFormatError
 from cli_runner import run_cli
@@ -172,3 +172,14 @@ def test_cli_ctrl_c_writes_what_is_finished(monkeypatch, capsys, tmp_path, tiny_
     assert len(json.loads((tmp_path / "r.json").read_text())) == 5
     assert len((tmp_path / "r.jsonl").read_text().splitlines()) == 5
     assert (tmp_path / "B.md").exists()
+
+
+def test_sweep_plot_from_records(tmp_path):
+    recs = []
+    for k, naive_ms, grid_ms in [(1, 100.0, 5.0), (64, 100.0, 20.0), (512, 100.0, 90.0)]:
+        for m, ms in (("naive", naive_ms), ("grid-pc", grid_ms)):
+            recs.append({"dataset": f"fig5b-256-k{k:04d}", "tf": "default", "method": m,
+                         "phase": "render", "ms": ms})
+    paths = write_plots(recs, tmp_path)
+    assert [p.name for p in paths] == ["sweep_fig5b-256.png"]
+    assert paths[0].stat().st_size > 1000

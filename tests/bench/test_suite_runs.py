@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import sparsecast as sc
-from sparsecast.bench.harness import BenchConfig, run_benchmarks
+from sparsecast.bench.config import BenchConfig
+from sparsecast.bench.harness import run_benchmarks
 from sparsecast.bench.progress import Progress, ResultStore, case_key
 from sparsecast.bench.suites import SUITES, get_suite, orbit_views, view_name
 from sparsecast.errors import FileFormatError, ParameterError

@@ -32,7 +32,7 @@ from ..index.bih import ParticleBIH, build_bih
 from ..elements import voxel_elements
 from ..render import render
 from ..render.particles import render_particles
-from .datasets import DATASETS
+from .catalog import DATASETS
 from .images import psnr
 from .timing import median_ms
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import atomic_path
+from .._util.atomic import atomic_path
 
 __all__ = ["psnr", "save_png", "image_name"]
 

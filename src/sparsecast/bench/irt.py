@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..range_tree import RangeMaxTree, classify_irt, opacity_range_tree
+from .range_tree import RangeMaxTree, classify_irt, opacity_range_tree
 from ..transfer import TransferFunction
 from .timing import median_ms
 

@@ -14,7 +14,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from ..io.atomic import atomic_path
+from .._util.atomic import atomic_path
 from .summary import SWEEP, RenderRow, best_exact, best_rows, build_ms, peer_ratio, render_rows
 
 __all__ = ["markdown_report", "write_markdown"]

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..io.atomic import atomic_path
+from .._util.atomic import atomic_path
 from .summary import SWEEP, build_ms, render_rows
 
 __all__ = ["write_plots"]

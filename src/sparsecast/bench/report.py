@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FileFormatError
-from ..io.atomic import atomic_path
+from .._util.atomic import atomic_path
 
 __all__ = ["format_table", "format_summary", "write_json", "load_records"]
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ParameterError
-from .datasets import DATASETS
+from .catalog import DATASETS
 
 __all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method"]
 

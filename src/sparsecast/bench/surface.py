@@ -28,13 +28,12 @@ import numpy as np
 
 from ..camera import Camera
 from ..io.meshes import load_mesh
-from ..surface import build_bvh, build_rbvh
-from ..surface._bvh_kernels import cast_rays
+from ..surface import RayCast, build_bvh, build_rbvh
 from ..surface.index import SurfaceIndex
 from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
 from ..surface.render import cast_camera, shade
 from ..surface.secondary import cosine_directions, facing
-from .datasets import find_shared_data
+from .shared_data import find_shared_data
 from .images import psnr
 from .timing import median_ms
 
@@ -75,12 +74,9 @@ def _diffuse_rays(hits, cam: Camera, width: int, height: int, eps: float, seed: 
     return np.ascontiguousarray(p + eps * n), np.ascontiguousarray(dirs)
 
 
-def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], None]:
-    n = len(o)
-    out = (np.empty(n), np.empty((n, 3), np.float32), np.empty(n, np.int32), np.empty(n, np.int32),
-           np.empty((n, 2), np.float32))
-    args = index.kernel_args()
-    return lambda: cast_rays(*args, o, d, 0.0, np.inf, index.depth + 2, 0.0, 0.0, index.mip_levels, *out)
+def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], object]:
+    """The traversal kernel alone on rays ``o + t d`` (checks and output arrays set up once)."""
+    return RayCast(index, o, d).run
 
 
 def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: int, warmup: int):

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
+from .._util.checks import fail
 from ..errors import ParameterError
 from .base import SpatialIndex
 
@@ -48,3 +50,49 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     if not idx.build_phases:
         idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
     return idx
+
+
+_LITERALS = {"none": None, "true": True, "false": False}
+
+
+def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """``"grid-pc:cell=8"`` -> ``("grid-pc", {"cell": 8})``.
+
+    Values are parsed as None/True/False, int, float, or else kept as strings.
+
+    Parameters
+    ----------
+    spec : str
+        An index name (see :func:`sparsecast.available_indices`), optionally followed
+        by build options ``:key=value[,key=value]``.
+
+    Returns
+    -------
+    (str, dict)
+        The index name and its build options.
+
+    Raises
+    ------
+    ParameterError
+        An option without ``=``, or an unknown index name.
+    """
+    name, _, opts = spec.partition(":")
+    options: dict[str, Any] = {}
+    for item in filter(None, opts.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise fail(f"method {spec!r}", "name:key=value[,key=value]", item)
+        if value.lower() in _LITERALS:
+            options[key] = _LITERALS[value.lower()]
+            continue
+        for conv in (int, float):
+            try:
+                options[key] = conv(value)
+                break
+            except ValueError:
+                continue
+        else:
+            options[key] = value
+    if name not in available_indices():
+        raise ParameterError(f"method {spec!r}: unknown index {name!r}; expected one of {', '.join(available_indices())}")
+    return name, options

@@ -1,4 +1,9 @@
-"""File input and output: volumes, images (and later meshes)."""
+"""File input and output: volumes, meshes and point clouds, particles.
+
+Volumes: :func:`load_volume` / :func:`save_volume` (:mod:`.volumes`) dispatch through
+the suffix table of :mod:`.formats` to one module per format (:mod:`.nrrd`,
+:mod:`.nifti`, :mod:`.raw`, :mod:`.npy`, :mod:`.tiff`).
+"""
 
 from .volumes import load_volume, parse_raw_name, save_volume
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util.checks import positive_float
 from ..errors import FileFormatError
 from ..surface.mesh import MeshDataError, PointCloud, TriangleMesh
 
@@ -93,7 +94,10 @@ def load_points(path: str | os.PathLike, *, radius: float | None = None) -> Poin
 
     A ``.npy`` file holds an ``(n, 3)`` array of points or ``(n, 6)`` of points
     and normals. A ``.ply`` mesh is read as its vertices (with vertex normals).
+    ``radius`` (positive) is the disc radius of every point.
     """
+    if radius is not None:
+        radius = positive_float(radius, "radius")
     p = Path(path)
     suffix = p.suffix.lower()
     normals = None

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util.checks import positive_float
 from ..elements import ParticleSet
 from ..errors import FileFormatError
 
@@ -37,7 +38,11 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
     ------
     FileFormatError
         Missing file, unknown suffix, or content that is not a particle table.
+    ParameterError
+        ``radius`` is not a positive number.
     """
+    if radius is not None:
+        radius = positive_float(radius, "radius")
     p = Path(path)
     if not p.is_file():
         raise FileFormatError(f"{str(p)!r}: file not found")

@@ -9,10 +9,10 @@
 """
 
 from .bvh import build_bvh
-from .index import Hits, SurfaceIndex, raycast
+from .index import Hits, RayCast, SurfaceIndex, raycast
 from .mesh import MeshDataError, PointCloud, TriangleMesh
 from .rbvh import QUALITY, Quality, build_rbvh
 from .render import render_surface
 
-__all__ = ["build_bvh", "build_rbvh", "raycast", "render_surface", "Hits", "SurfaceIndex",
+__all__ = ["build_bvh", "build_rbvh", "raycast", "RayCast", "render_surface", "Hits", "SurfaceIndex",
            "TriangleMesh", "PointCloud", "MeshDataError", "QUALITY", "Quality"]

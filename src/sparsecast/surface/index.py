@@ -1,4 +1,4 @@
-"""The flattened surface index both builders produce, and :func:`raycast` over it.
+"""The flattened surface index both builders produce, and :func:`raycast` (:class:`RayCast`) over it.
 
 A :class:`SurfaceIndex` is a BVH whose leaves are triangles (exact) or
 height-field tiles in an atlas (approximate); the exact BVH has no tiles, the
@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import ParameterError
 from ._bvh_kernels import TILE_LEAF, cast_rays
 
-__all__ = ["SurfaceIndex", "Hits", "raycast", "empty_atlas_arrays"]
+__all__ = ["SurfaceIndex", "Hits", "RayCast", "raycast", "empty_atlas_arrays"]
 
 
 def empty_atlas_arrays() -> dict[str, np.ndarray]:
@@ -175,6 +175,49 @@ def _rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(o), np.ascontiguousarray(d / ln)
 
 
+class RayCast:
+    """Rays against an index, checked and with their output arrays allocated once.
+
+    :meth:`run` casts them (again; only the traversal kernel runs), :meth:`hits`
+    reads the result. :func:`raycast` is ``RayCast(...).run().hits()``; a benchmark
+    times :meth:`run` alone, so that checking and allocation stay out of the timing.
+
+    Parameters are those of :func:`raycast`.
+    """
+
+    def __init__(self, index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
+                 t_max: float = np.inf, footprint: tuple[float, float] = (0.0, 0.0)) -> None:
+        if not isinstance(index, SurfaceIndex):
+            raise ParameterError(f"index: expected a SurfaceIndex from build_bvh/build_rbvh, got {type(index).__name__}")
+        if not (t_max >= t_min >= 0.0):
+            raise ParameterError(f"t_min, t_max: expected 0 <= t_min <= t_max, got {t_min}, {t_max}")
+        self.index = index
+        self.origins, self.directions = _rays(origins, directions)
+        n = len(self.origins)
+        self.t = np.empty(n, np.float64)
+        self.normals = np.empty((n, 3), np.float32)
+        self.face = np.empty(n, np.int32)
+        self.tile = np.empty(n, np.int32)
+        self.uv = np.empty((n, 2), np.float32)
+        fp0, spread = (float(x) for x in footprint)
+        if not (fp0 >= 0 and spread >= 0):
+            raise ParameterError(f"footprint: expected two non-negative numbers (w0, spread), got {footprint!r}")
+        self._args = (*index.kernel_args(), self.origins, self.directions, float(t_min), float(t_max),
+                      index.depth + 2, fp0, spread, index.mip_levels,
+                      self.t, self.normals, self.face, self.tile, self.uv)
+
+    def run(self) -> "RayCast":
+        """Cast every ray (the kernel fills the output arrays in place)."""
+        cast_rays(*self._args)
+        return self
+
+    def hits(self) -> Hits:
+        """The closest hits of the last :meth:`run`."""
+        o, d, t = self.origins, self.directions, self.t
+        pts = o + np.where(np.isfinite(t), t, np.nan)[:, None] * d
+        return Hits(t, pts, self.normals, self.face, self.tile, self.uv)
+
+
 def raycast(index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
             t_max: float = np.inf, footprint: tuple[float, float] = (0.0, 0.0)) -> Hits:
     """Closest hit of every ray ``origins[i] + t * directions[i]``, ``t`` in ``[t_min, t_max]``.
@@ -183,21 +226,4 @@ def raycast(index: SurfaceIndex, origins, directions, *, t_min: float = 0.0,
     ``footprint = (w0, spread)``: the rays' width ``w0 + spread * t`` selects the
     mip level of an RBVH built with ``mip_levels > 1`` (default: the finest).
     """
-    if not isinstance(index, SurfaceIndex):
-        raise ParameterError(f"index: expected a SurfaceIndex from build_bvh/build_rbvh, got {type(index).__name__}")
-    if not (t_max >= t_min >= 0.0):
-        raise ParameterError(f"t_min, t_max: expected 0 <= t_min <= t_max, got {t_min}, {t_max}")
-    o, d = _rays(origins, directions)
-    n = len(o)
-    t = np.empty(n, np.float64)
-    nrm = np.empty((n, 3), np.float32)
-    face = np.empty(n, np.int32)
-    tile = np.empty(n, np.int32)
-    uv = np.empty((n, 2), np.float32)
-    fp0, spread = (float(x) for x in footprint)
-    if not (fp0 >= 0 and spread >= 0):
-        raise ParameterError(f"footprint: expected two non-negative numbers (w0, spread), got {footprint!r}")
-    cast_rays(*index.kernel_args(), o, d, float(t_min), float(t_max), index.depth + 2, fp0, spread,
-              index.mip_levels, t, nrm, face, tile, uv)
-    pts = o + np.where(np.isfinite(t), t, np.nan)[:, None] * d
-    return Hits(t, pts, nrm, face, tile, uv)
+    return RayCast(index, origins, directions, t_min=t_min, t_max=t_max, footprint=footprint).run().hits()

@@ -5,6 +5,8 @@ Used here to answer "maximum opacity over transfer-function table entries
 ``[lo, hi]``" — an alternative to the O(1) prefix count behind
 :meth:`TransferFunction.is_empty <sparsecast.transfer.TransferFunction.is_empty>` that
 also yields the *value* of the maximum (useful e.g. for opacity-bounded step sizes).
+No renderer uses it: it lives in the benchmark package, where :mod:`.irt` times it
+against the prefix count.
 
 Layout
 ------
@@ -39,8 +41,8 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from .errors import ParameterError
-from .kernels.classify import entry_span
+from ..errors import ParameterError
+from ..kernels.classify import entry_span
 
 __all__ = [
     "RangeMaxTree",

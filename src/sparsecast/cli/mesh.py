@@ -8,44 +8,45 @@ from typing import Annotated, Optional
 
 import typer
 
-__all__ = ["render_mesh"]
+from .._util.checks import one_of
+from ..errors import ParameterError
+from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, ZoomOpt, app, out
+from .parse import parse_size
 
+__all__ = ["render_mesh", "INDICES"]
+
+#: the surface indices render-mesh offers
 INDICES = ("rbvh", "bvh")
 
 
+@app.command("render-mesh")
 def render_mesh(
     file: Annotated[Path, typer.Argument(help="Mesh (.ply .obj .stl .glb .off) or, with --points, a point cloud (.ply .npy).")],
     index: Annotated[str, typer.Option(help="rbvh (approximate, height-field tiles) or bvh (exact triangles).")] = "rbvh",
     quality: Annotated[str, typer.Option(help="RBVH quality preset Q0 (finest) .. Q4 (coarsest).")] = "Q2",
     mode: Annotated[str, typer.Option(help="shaded, depth or normal.")] = "shaded",
-    azimuth: Annotated[float, typer.Option(help="Orbit azimuth in degrees.")] = 30.0,
-    elevation: Annotated[float, typer.Option(help="Orbit elevation in degrees.")] = 20.0,
-    projection: Annotated[str, typer.Option(help="perspective or orthographic.")] = "perspective",
-    zoom: Annotated[float, typer.Option(help="Magnification (>1 zooms in).")] = 1.0,
-    size: Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")] = "512x512",
+    azimuth: AzimuthOpt = 30.0,
+    elevation: ElevationOpt = 20.0,
+    projection: ProjectionOpt = "perspective",
+    zoom: ZoomOpt = 1.0,
+    size: SizeOpt = "512x512",
     y_up: Annotated[bool, typer.Option("--y-up/--z-up", help="The file's up axis (scanned meshes are usually y-up).")] = False,
     points: Annotated[bool, typer.Option("--points", help="Read the file as a point cloud (splatted discs; needs --index rbvh).")] = False,
     radius: Annotated[Optional[float], typer.Option(help="Point clouds: disc radius (default from the point spacing).")] = None,
-    output: Annotated[Path, typer.Option("-o", "--output", help="Image file (.png, .jpg, .tif, or .npy).")] = Path("sparsecast-mesh.png"),
+    output: OutputOpt = Path("sparsecast-mesh.png"),
 ) -> None:
     """Render a triangle mesh (or point cloud) with an exact BVH or a rasterized BVH."""
-    from rich.console import Console
-
     from ..camera import Camera
-    from ..cli import _parse_size
-    from ..errors import ParameterError
     from ..io.meshes import load_mesh, load_points
-    from . import build_bvh, build_rbvh, render_surface
-    from .mesh import icosphere, z_up
-    from .render import MODES
+    from ..surface import build_bvh, build_rbvh, render_surface
+    from ..surface.mesh import icosphere, z_up
+    from ..surface.render import MODES
 
-    if index not in INDICES:
-        raise ParameterError(f"--index: expected one of {', '.join(INDICES)}, got {index!r}")
-    if mode not in MODES:
-        raise ParameterError(f"--mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    one_of(index, "--index", INDICES)
+    one_of(mode, "--mode", MODES)
     if points and index != "rbvh":
         raise ParameterError("--points: point clouds are rendered with --index rbvh only")
-    width, height = _parse_size(size)
+    width, height = parse_size(size)
     t0 = time.perf_counter()
     if points:
         surface = load_points(file, radius=radius)
@@ -69,7 +70,7 @@ def render_mesh(
     img = render_surface(idx, cam, width, height, mode=mode)
     img.save(output)
     s, st = img.stats, idx.stats()
-    Console(soft_wrap=True).print(
+    out.print(
         f"wrote {output} ({width}x{height}, {file.name}: {what}, index {index}"
         + (f" {quality}, {st['tiles']} tiles" if index == "rbvh" else "")
         + f", {st['nodes']} nodes, {st['bytes'] / 2**20:.1f} MiB; build {st['build_ms']:.0f} ms, "

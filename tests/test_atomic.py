@@ -7,8 +7,8 @@ import stat
 
 import pytest
 
+from sparsecast._util.atomic import atomic_path
 from sparsecast.errors import ParameterError
-from sparsecast.io.atomic import atomic_path
 
 
 def test_failed_write_leaves_target_and_no_temporary(tmp_path):

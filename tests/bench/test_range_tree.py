@@ -8,8 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sparsecast.errors import ParameterError
-from sparsecast.range_tree import (
+from sparsecast.bench.range_tree import (
     RangeMaxTree,
     classify_irt,
     is_empty_irt,
@@ -17,6 +16,7 @@ from sparsecast.range_tree import (
     opacity_range_tree,
     range_max,
 )
+from sparsecast.errors import ParameterError
 from sparsecast.transfer import TransferFunction
 
 # Sizes that exercise every odd/even level pattern, plus random ones up to 5000.

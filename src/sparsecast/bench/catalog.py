@@ -1,35 +1,25 @@
-"""Benchmark datasets: the generated demo and the real volumes in ``../shared/data``."""
+"""The benchmark's catalogue of named volumes (:data:`DATASETS`), each with the TF it is
+measured with (and :func:`dense_tf`, the TF with no empty space that every dataset is
+also measured with): generated fields from :mod:`sparsecast.datasets` (the demo at three
+sizes, the synthetic cluster sweeps of Fig. 5) and real files from the shared data
+folder (:func:`~.shared_data.find_shared_data`), which are skipped where it is absent.
+
+:mod:`sparsecast.datasets` makes volumes; this module only names them for
+``sparsecast bench -d NAME`` and says how each is loaded and classified.
+"""
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
-from ..datasets import demo_volume, nbody_blobs
+from ..datasets import demo_volume, nbody_blobs, random_clusters
 from ..io import load_volume
 from ..transfer import TransferFunction
 from ..volume import Volume
+from .shared_data import find_shared_data
 
-__all__ = ["BenchDataset", "DATASETS", "find_shared_data"]
-
-
-def find_shared_data() -> Path | None:
-    """The shared data folder, or None when this checkout has none.
-
-    Looks at ``$SPARSECAST_DATA`` first, then ``../shared/data`` relative to the
-    working directory and to the project root (where ``src/`` lives).
-    """
-    env = os.environ.get("SPARSECAST_DATA")
-    candidates = [Path(env)] if env else []
-    project_root = Path(__file__).resolve().parents[3]
-    for base in (Path.cwd(), project_root):
-        candidates += [base / ".." / "shared" / "data", base / "shared" / "data"]
-    for c in candidates:
-        if c.is_dir():
-            return c.resolve()
-    return None
+__all__ = ["BenchDataset", "DATASETS", "dense_tf"]
 
 
 @dataclass(frozen=True)
@@ -98,27 +88,6 @@ DATASETS: dict[str, BenchDataset] = {
 
 
 # -- issue 4: the synthetic sweeps of Zellmann et al. 2018, Fig. 5 (opt-in) -----------
-def random_clusters(n: int, n_clusters: int, radius: float, seed: int = 7) -> Volume:
-    """``n``^3 float32 volume of ``n_clusters`` balls of random voxel values in
-    [0.2, 1] (radius ``radius`` voxels, random centres), zero elsewhere."""
-    import numpy as np
-
-    rng = np.random.default_rng(seed)
-    data = np.zeros((n, n, n), np.float32)
-    r = max(float(radius), 0.5)
-    ri = int(np.ceil(r))
-    off = np.arange(-ri, ri + 1)
-    dz, dy, dx = np.meshgrid(off, off, off, indexing="ij")
-    ball = dz * dz + dy * dy + dx * dx <= r * r
-    pz, py, px = (a[ball] for a in (dz, dy, dx))
-    for _ in range(n_clusters):
-        c = rng.integers(0, n, 3)
-        z, y, x = pz + c[0], py + c[1], px + c[2]
-        keep = (z >= 0) & (z < n) & (y >= 0) & (y < n) & (x >= 0) & (x < n)
-        data[z[keep], y[keep], x[keep]] = rng.uniform(0.2, 1.0, int(keep.sum())).astype(np.float32)
-    return Volume(data)
-
-
 def _cluster_tf(v: Volume) -> TransferFunction:
     return TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
 
@@ -145,3 +114,11 @@ def _fig5_datasets() -> list[BenchDataset]:
 
 
 DATASETS.update({d.name: d for d in _fig5_datasets()})
+
+
+def dense_tf(vol: Volume) -> TransferFunction:
+    """A TF with non-zero opacity for every value: no empty space at all."""
+    lo, hi = vol.value_range
+    if hi <= lo:
+        hi = lo + 1.0
+    return TransferFunction([(lo, 0.2, 0.3, 0.8, 0.004), (hi, 1.0, 0.9, 0.6, 0.2)], (lo, hi), name="dense")

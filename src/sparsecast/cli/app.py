@@ -1,0 +1,73 @@
+"""The typer application, its consoles, the option types several commands share, and
+:func:`main`, the console entry point.
+
+Commands live one group per module (:mod:`.render`, :mod:`.info`, :mod:`.bench`,
+:mod:`.view`, :mod:`.mesh`) and register themselves on :data:`app` when
+:mod:`sparsecast.cli` imports them; this module imports none of them, so the
+dependencies point one way only.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+
+from ..errors import SparsecastError
+
+__all__ = [
+    "app", "main", "out", "err",
+    "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
+    "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt",
+]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Fast ray casting of sparse volumes.",
+)
+#: Results go to stdout, warnings, progress and errors to stderr.
+out = Console(soft_wrap=True)
+err = Console(stderr=True, soft_wrap=True)
+
+# Options shared by the commands that load and classify a volume (render, info, view).
+FileArg = Annotated[
+    Optional[Path],
+    typer.Argument(help="Volume file (.nrrd .nhdr .nii .nii.gz .raw .npy .tif); omit for the built-in demo."),
+]
+TfOpt = Annotated[
+    str, typer.Option("--tf", help="Preset name (see `sparsecast info --presets`) or a TF .json file.")
+]
+TfRangeOpt = Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans (default: the volume's).")]
+ThresholdOpt = Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction of the range.")]
+DimsOpt = Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")]
+DtypeOpt = Annotated[Optional[str], typer.Option(help="Raw files: uint8, uint16, int16, float32, float64.")]
+SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")]
+CellOpt = Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")]
+
+# Options shared by the commands that render an image (render, render-mesh).
+AzimuthOpt = Annotated[float, typer.Option(help="Orbit azimuth in degrees.")]
+ElevationOpt = Annotated[float, typer.Option(help="Orbit elevation in degrees.")]
+ProjectionOpt = Annotated[str, typer.Option(help="perspective or orthographic.")]
+ZoomOpt = Annotated[float, typer.Option(help="Magnification (>1 zooms in).")]
+SizeOpt = Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")]
+OutputOpt = Annotated[Path, typer.Option("-o", "--output", help="Image file (.png, .jpg, .tif, or .npy).")]
+
+
+def main() -> None:
+    """Console entry point: bad input becomes one line on stderr and exit status 2."""
+    try:
+        app()
+    except SparsecastError as exc:
+        err.print(f"[red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        sys.exit(2)
+    except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
+        err.print(f"[red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        err.print("interrupted")
+        sys.exit(130)

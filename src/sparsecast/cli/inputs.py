@@ -1,0 +1,41 @@
+"""The volume and transfer function that a command's FILE, ``--dims``/``--dtype``/
+``--spacing`` and ``--tf``/``--tf-range``/``--threshold`` options name (render, info, view)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+from .parse import parse_dims, parse_pair, parse_spacing
+
+__all__ = ["load_input", "make_tf"]
+
+
+def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str]):
+    """The volume in ``file`` (raw layout and spacing from the options), or the built-in
+    demo when no file is given."""
+    from ..datasets import demo_volume
+    from ..io import load_volume
+
+    if file is None:
+        return demo_volume()
+    kw = {}
+    if dims:
+        kw["dims"] = parse_dims(dims)
+    if dtype:
+        kw["dtype"] = dtype
+    if spacing:
+        kw["spacing"] = parse_spacing(spacing)
+    return load_volume(file, **kw)
+
+
+def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):
+    """A preset over the volume's range (or ``tf_range``), or a TF ``.json`` file
+    (re-ranged only when ``tf_range`` is given)."""
+    from ..transfer import TransferFunction
+
+    value_range = parse_pair(tf_range, "--tf-range") if tf_range else vol.value_range
+    if spec.lower().endswith(".json"):
+        tf = TransferFunction.load(spec)
+        return tf.with_range(value_range) if tf_range else tf
+    return TransferFunction.preset(spec, value_range, threshold=threshold)

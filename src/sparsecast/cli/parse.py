@@ -1,0 +1,85 @@
+"""Every parser of command-line values, in one place: image sizes, number lists, raw
+dims, spacing, backgrounds, index specs ``NAME:KEY=VALUE[,KEY=VALUE]`` and
+repeatable lists with ``none``.
+
+Each returns plain Python values or raises :class:`~sparsecast.errors.ParameterError`
+naming the option, what it found and what it expected (``sparsecast`` prints that as
+one line). Index specs are parsed by :func:`sparsecast.index.parse_index_spec`
+(re-exported here), which the benchmark harness uses too.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .._util.checks import fail
+from ..index.registry import parse_index_spec
+
+__all__ = [
+    "parse_size", "parse_pair", "parse_numbers", "parse_dims", "parse_spacing", "parse_background",
+    "parse_index_spec", "none_list",
+]
+
+
+def parse_size(size: str) -> tuple[int, int]:
+    """``"640x480"`` -> ``(640, 480)``; one number means a square (``"512"``)."""
+    parts = size.lower().split("x")
+    try:
+        if len(parts) == 1:
+            w = h = int(parts[0])
+        elif len(parts) == 2:
+            w, h = int(parts[0]), int(parts[1])
+        else:
+            raise ValueError
+    except ValueError:
+        raise fail("--size", "WIDTHxHEIGHT like 512x512", size) from None
+    return w, h
+
+
+def parse_pair(text: str, name: str) -> tuple[float, float]:
+    """``"lo,hi"`` -> ``(lo, hi)`` as floats (``name`` is the option, for the message)."""
+    try:
+        lo, hi = (float(x) for x in text.split(","))
+    except ValueError:
+        raise fail(name, "two numbers 'lo,hi'", text) from None
+    return lo, hi
+
+
+def parse_numbers(text: str, name: str) -> tuple[float, ...]:
+    """``"1,0.5,0"`` -> ``(1.0, 0.5, 0.0)``: any count of comma-separated numbers."""
+    try:
+        return tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise fail(name, "comma-separated numbers", text) from None
+
+
+def parse_dims(dims: str) -> tuple[int, ...]:
+    """``--dims`` ``"256x256x128"`` -> ``(256, 256, 128)`` (the loader checks there are three)."""
+    try:
+        return tuple(int(x) for x in dims.lower().split("x"))
+    except ValueError:
+        raise fail("--dims", "NXxNYxNZ like 256x256x128", dims) from None
+
+
+def parse_spacing(spacing: str) -> float | list[float]:
+    """``--spacing`` ``"sx,sy,sz"`` -> a list, or one number -> that number (isotropic)."""
+    try:
+        vals = [float(x) for x in spacing.split(",")]
+    except ValueError:
+        raise fail("--spacing", "'sx,sy,sz' or one number", spacing) from None
+    return vals[0] if len(vals) == 1 else vals
+
+
+def parse_background(background: str) -> str | list[float]:
+    """``--background``: a colour name is passed on as it is, ``"r,g,b[,a]"`` as numbers
+    (the renderer checks both)."""
+    if "," in background:
+        return list(parse_numbers(background, "--background"))
+    return background
+
+
+def none_list(values: Optional[list[str]]) -> Optional[list[str]]:
+    """Repeatable option values, with 'none' meaning an explicit empty list."""
+    if values is None:
+        return None
+    return [] if [v.lower() for v in values] == ["none"] else values

@@ -1,0 +1,72 @@
+"""``sparsecast render``: one volume to one image."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from .._util.checks import fail
+from .app import (
+    AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
+)
+from .inputs import load_input, make_tf
+from .parse import parse_background, parse_index_spec, parse_size
+
+__all__ = ["render"]
+
+
+@app.command()
+def render(
+    file: FileArg = None,
+    tf: TfOpt = "viridis",
+    tf_range: TfRangeOpt = None,
+    threshold: ThresholdOpt = 0.1,
+    azimuth: AzimuthOpt = 30.0,
+    elevation: ElevationOpt = 20.0,
+    projection: ProjectionOpt = "perspective",
+    zoom: ZoomOpt = 1.0,
+    size: SizeOpt = "512x512",
+    dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
+    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8.")] = "naive",
+    cell: CellOpt = None,
+    shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
+    background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
+    ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
+    output: OutputOpt = Path("sparsecast.png"),
+    array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
+    dims: DimsOpt = None,
+    dtype: DtypeOpt = None,
+    spacing: SpacingOpt = None,
+) -> None:
+    """Render a volume (default: the built-in sparse demo) to an image."""
+    from ..camera import Camera
+    from ..render import render as do_render
+
+    width, height = parse_size(size)
+    t0 = time.perf_counter()
+    vol = load_input(file, dims, dtype, spacing)
+    tfn = make_tf(tf, vol, tf_range, threshold)
+    if tfn.is_transparent:
+        err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
+    cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
+    bg = parse_background(background)
+    index_name, index_options = parse_index_spec(index)
+    if cell is not None:
+        index_options["cell"] = cell
+    img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
+                    background=bg, **index_options)
+    img.save(output)
+    if array is not None:
+        if array.suffix.lower() != ".npy":
+            raise fail("--array", "a .npy file name", str(array))
+        img.save(array)
+    s = img.stats
+    out.print(
+        f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
+        f"index {s['index']}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
+    )

@@ -1,0 +1,60 @@
+"""``sparsecast view``: the interactive viewer in a web browser."""
+
+from __future__ import annotations
+
+from typing import Annotated, Optional
+
+import typer
+
+from .._util.checks import as_int
+from .app import CellOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, err, out
+from .inputs import load_input, make_tf
+
+__all__ = ["view"]
+
+
+@app.command()
+def view(
+    file: FileArg = None,
+    tf: TfOpt = "viridis",
+    tf_range: TfRangeOpt = None,
+    threshold: ThresholdOpt = 0.1,
+    index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default grid-pc).")] = None,
+    cell: CellOpt = None,
+    host: Annotated[str, typer.Option(help="Address to bind; anything but loopback needs --allow-remote.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port (0 picks a free one).")] = 8765,
+    allow_remote: Annotated[bool, typer.Option("--allow-remote", help="Allow a non-loopback --host (no authentication!).")] = False,
+    no_browser: Annotated[bool, typer.Option("--no-browser", help="Do not open a web browser.")] = False,
+    dims: DimsOpt = None,
+    dtype: DtypeOpt = None,
+    spacing: SpacingOpt = None,
+) -> None:
+    """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices."""
+    from ..viewer import require_web_stack
+
+    require_web_stack()
+    from ..viewer.server import ViewerServer, check_host
+    from ..viewer.session import ViewerData, spec_from_preset
+
+    remote = check_host(host, allow_remote)
+    as_int(port, "--port", 0, 65535, expected="0..65535 (0 picks a free port)")
+    vol = load_input(file, dims, dtype, spacing)
+    tfn = make_tf(tf, vol, tf_range, threshold)
+    data = ViewerData.create(vol, tfn, index=index, cell=cell)
+    if not tf.lower().endswith(".json"):
+        # Editable form of a preset: its colour map plus a few opacity points.
+        data.tf = spec_from_preset(tf, tfn.value_range, threshold)
+    server = ViewerServer(data, host, port, allow_remote=allow_remote)
+    with err.status("preparing the index and kernels"):
+        data.warm_up()
+    if remote:
+        err.print(f"[yellow]warning:[/] serving on {host}, reachable from other machines; the viewer has no authentication")
+    out.print(f"sparsecast viewer: {server.url}  ({vol.name} {'x'.join(map(str, vol.dims))}; Ctrl-C stops)")
+    if not no_browser:
+        import threading
+        import webbrowser
+
+        opener = threading.Timer(0.5, webbrowser.open, args=(server.url,))
+        opener.daemon = True
+        opener.start()
+    server.serve_forever()

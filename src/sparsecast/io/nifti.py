@@ -1,0 +1,74 @@
+"""NIfTI volumes (``.nii``, ``.nii.gz``), through nibabel."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError
+from ..volume import Volume
+from .reading import Read, read_guard
+
+__all__ = ["read_nifti", "write_nifti"]
+
+
+def read_nifti(path: Path) -> Read:
+    """A 3-D scalar NIfTI-1/2 image (trailing singleton axes dropped).
+
+    The on-disk dtype is kept unless ``scl_slope``/``scl_inter`` are set and
+    non-trivial (then the scaled values, at least float32); spacing from the zooms,
+    origin from the affine's translation.
+    """
+    import nibabel as nib
+
+    def _read():
+        img = nib.load(str(path), mmap=False)
+        dataobj = img.dataobj
+        if nib.is_proxy(dataobj):
+            # nibabel moves scl_slope/scl_inter from the header into the proxy on load
+            # (the image's header then reads NaN), so take them from the proxy.
+            raw = np.asarray(dataobj.get_unscaled())
+            slope = getattr(dataobj, "slope", None)
+            inter = getattr(dataobj, "inter", None)
+        else:
+            raw = np.asanyarray(dataobj)
+            slope, inter = img.header.get_slope_inter()
+        zooms = img.header.get_zooms()
+        return img, np.array(raw), slope, inter, zooms
+
+    img, raw, slope, inter, zooms = read_guard(path, "NIfTI", _read)
+    # Drop trailing singleton axes (x, y, z, 1) which are common in the wild.
+    while raw.ndim > 3 and raw.shape[-1] == 1:
+        raw = raw[..., 0]
+    if raw.ndim != 3:
+        raise FileFormatError(
+            f"{str(path)!r}: {raw.ndim}-D NIfTI image of shape {raw.shape}; expected a 3-D scalar volume"
+        )
+    slope = None if slope is None or not np.isfinite(float(slope)) else float(slope)
+    inter = None if inter is None or not np.isfinite(float(inter)) else float(inter)
+    if (slope not in (None, 0.0, 1.0)) or (inter not in (None, 0.0)):
+        out_dtype = np.result_type(raw.dtype, np.float32)
+        s = 1.0 if slope in (None, 0.0) else slope
+        i = 0.0 if inter is None else inter
+        raw = raw.astype(out_dtype) * out_dtype.type(s) + out_dtype.type(i)
+    data = np.ascontiguousarray(raw.transpose(2, 1, 0))  # (x, y, z) -> (z, y, x)
+    spacing = np.asarray(zooms[:3], dtype=np.float64)
+    if spacing.shape != (3,) or not np.all(np.isfinite(spacing)) or np.any(spacing <= 0):
+        spacing = None
+    origin = np.asarray(img.affine, dtype=np.float64)[:3, 3]
+    if not np.all(np.isfinite(origin)):
+        origin = None
+    return data, spacing, origin
+
+
+def write_nifti(volume: Volume, tmp: Path, compress: bool) -> None:
+    """Affine = diag(spacing) + origin; ``.nii.gz`` is compressed by its name (``compress`` is ignored)."""
+    import nibabel as nib
+
+    affine = np.diag(np.append(volume.spacing.astype(np.float64), 1.0))
+    affine[:3, 3] = volume.origin
+    img = nib.Nifti1Image(np.asarray(volume.data).transpose(2, 1, 0), affine)  # (z,y,x) -> (x,y,z)
+    img.header.set_data_dtype(volume.data.dtype)
+    img.header.set_xyzt_units("mm")
+    nib.save(img, str(tmp))

@@ -1,0 +1,79 @@
+"""`sparsecast render`: images that match the API, index options, outputs left complete or absent."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image as PILImage
+
+import sparsecast as sc
+from cli_runner import run_cli
+
+
+def test_render_demo_default_writes_png_and_array(monkeypatch, capsys, tmp_path):
+    out = tmp_path / "demo.png"
+    arr = tmp_path / "demo.npy"
+    code, stdout, err = run_cli(monkeypatch, capsys, "render", "--size", "40x30", "-o", str(out), "--array", str(arr))
+    assert code == 0, err
+    assert "wrote" in stdout
+    with PILImage.open(out) as im:
+        assert im.size == (40, 30)
+        assert im.mode == "RGBA"
+    rgba = np.load(arr)
+    assert rgba.shape == (30, 40, 4) and rgba.dtype == np.float32
+    # Black background: opaque everywhere, and the demo is visible somewhere.
+    assert np.allclose(rgba[..., 3], 1.0)
+    assert rgba[..., :3].max() > 0.05
+
+
+def test_render_file_matches_api(monkeypatch, capsys, tmp_path, small_volume_file):
+    arr = tmp_path / "img.npy"
+    code, _, err = run_cli(
+        monkeypatch, capsys, "render", str(small_volume_file), "--tf", "bone", "--size", "24x20",
+        "--azimuth", "45", "--elevation", "-10", "--projection", "orthographic", "--dt", "0.7",
+        "--background", "transparent", "-o", str(tmp_path / "img.png"), "--array", str(arr),
+    )
+    assert code == 0, err
+    vol = sc.load_volume(small_volume_file)
+    tf = sc.TransferFunction.preset("bone", vol.value_range)
+    cam = sc.Camera.orbit(vol, 45, -10, projection="orthographic")
+    ref = sc.render(vol, tf, cam, 24, 20, dt=0.7)
+    np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
+
+
+@pytest.mark.parametrize("spec, name, options", [
+    ("bih:mode=single-sample", "bih", {"mode": "single-sample"}),
+    ("grid-pc:cell=8", "grid-pc", {"cell": 8}),
+])
+def test_render_index_options_match_api(monkeypatch, capsys, tmp_path, small_volume_file, spec, name, options):
+    arr = tmp_path / "img.npy"
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "20x16",
+                           "--index", spec, "-o", str(tmp_path / "img.png"), "--array", str(arr))
+    assert code == 0, err
+    vol = sc.load_volume(small_volume_file)
+    tf = sc.TransferFunction.preset("viridis", vol.value_range)
+    ref = sc.render(vol, tf, sc.Camera.orbit(vol, 30, 20), 20, 16, background="black", index=name, **options)
+    np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
+
+
+def test_output_directory_missing_leaves_nothing(monkeypatch, capsys, tmp_path):
+    target = tmp_path / "missing" / "x.png"
+    code, _, err = run_cli(monkeypatch, capsys, "render", "--size", "8x8", "-o", str(target))
+    assert code == 2
+    assert "missing" in err
+    assert not target.parent.exists()
+
+
+def test_unsupported_output_suffix_leaves_nothing(monkeypatch, capsys, tmp_path):
+    code, _, err = run_cli(monkeypatch, capsys, "render", "--size", "8x8", "-o", str(tmp_path / "x.gif2"))
+    assert code == 2 and "suffix" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_warning_for_transparent_tf(monkeypatch, capsys, tmp_path, small_volume_file):
+    tf = sc.TransferFunction([(0, 1, 1, 1, 0), (1, 1, 1, 1, 0)])
+    tf_path = tf.save(tmp_path / "clear.json")
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--tf", str(tf_path),
+                           "--size", "8x8", "-o", str(tmp_path / "c.png"))
+    assert code == 0
+    assert "zero opacity" in err
