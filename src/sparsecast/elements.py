@@ -82,9 +82,6 @@ def _check_resample(resample) -> float:
     return r
 
 
-#: ``check_unit(value, name)``: ``value`` as a float in [0, 1], or a ParameterError
-#: naming ``name`` (the BIH imports it from here; new code uses ``_util.checks.unit_float``).
-check_unit = unit_float
 
 
 @njit(cache=True, parallel=True)
@@ -152,7 +149,7 @@ def voxel_elements(volume: Volume, threshold: float = 0.1, resample: float = 1.0
     """
     if not isinstance(volume, Volume):
         raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
-    thr = check_unit(threshold, "threshold")
+    thr = unit_float(threshold, "threshold")
     r = _check_resample(resample)
     v_lo, v_hi = (float(x) for x in volume.value_range)
     span = v_hi - v_lo if v_hi > v_lo else 1.0

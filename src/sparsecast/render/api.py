@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .._util.checks import as_float
 from ..camera import Camera
 from ..errors import ParameterError
 from ..image import Image
@@ -18,7 +19,7 @@ from .driver import dvr_tiles
 from .frame import Frame
 from .schedule import run_tiles
 from .options import (
-    DEFAULT_SHADING, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, as_float, background_array, check_size, initial_rgba,
+    DEFAULT_SHADING, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, background_array, check_size, initial_rgba,
     rect_bounds, shading_array,
 )
 
@@ -117,17 +118,13 @@ def render(
     min_spacing = float(volume.spacing.min())
     if dt is None:
         dt = 0.5 * min_spacing
-    dt = as_float(dt, "dt")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ParameterError(f"dt: expected a positive world-space step, got {dt}")
+    dt = as_float(dt, "dt", 0.0, lo_open=True, expected="a positive world-space step")
     if volume.diagonal / dt > MAX_SAMPLES_PER_RAY:
         raise ParameterError(
             f"dt: {dt:g} would take {volume.diagonal / dt:.3g} samples per ray across the volume; "
             f"expected at most {MAX_SAMPLES_PER_RAY} (dt >= {volume.diagonal / MAX_SAMPLES_PER_RAY:.3g})"
         )
-    ert = as_float(ert, "ert")
-    if not (0.0 < ert <= 1.0):
-        raise ParameterError(f"ert: expected an opacity threshold in (0, 1], got {ert}")
+    ert = as_float(ert, "ert", 0.0, 1.0, lo_open=True, expected="an opacity threshold in (0, 1]")
     clip_lo, clip_hi, open_lo, open_hi = _clip(volume, clip_box, clip_open)
     init = initial_rgba(initial, w, h)
 

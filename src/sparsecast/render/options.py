@@ -9,8 +9,8 @@ import numpy as np
 from ..errors import ParameterError
 from ..kernels.shade import SHADING_SIZE
 
-__all__ = ["MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "DEFAULT_SHADING", "NAMED_BACKGROUNDS", "as_float",
-           "check_size", "shading_array", "background_array", "rect_bounds", "initial_rgba"]
+__all__ = ["MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "DEFAULT_SHADING", "NAMED_BACKGROUNDS", "check_size",
+           "shading_array", "background_array", "rect_bounds", "initial_rgba"]
 
 MAX_IMAGE_SIDE = 16384
 MAX_IMAGE_PIXELS = 1 << 26  # 64 Mpixel: 1 GiB of float RGBA
@@ -24,14 +24,6 @@ NAMED_BACKGROUNDS = {
     "white": (1.0, 1.0, 1.0, 1.0),
     "gray": (0.5, 0.5, 0.5, 1.0),
 }
-
-
-def as_float(value, name: str) -> float:
-    """``float(value)``, or a :class:`ParameterError` naming ``name``."""
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name}: expected a number, got {value!r}") from None
 
 
 def check_size(width, height) -> tuple[int, int]:

@@ -18,6 +18,7 @@ import time
 import numpy as np
 from numba import njit, prange
 
+from .._util.checks import as_float, positive_float
 from ..camera import Camera
 from ..elements import ParticleSet
 from ..errors import ParameterError
@@ -149,15 +150,9 @@ def render_particles(
     if not isinstance(camera, Camera):
         raise ParameterError(f"camera: expected a sparsecast.Camera, got {type(camera).__name__}")
     width, height = check_size(width, height)
-    for name, v, ok, want in (("radius_scale", radius_scale, lambda x: x > 0, "a positive number"),
-                              ("kappa", kappa, lambda x: x >= 0, "a non-negative number"),
-                              ("ert", ert, lambda x: 0 < x <= 1, "a number in (0, 1]")):
-        try:
-            fv = float(v)
-        except (TypeError, ValueError):
-            raise ParameterError(f"{name}: expected {want}, got {v!r}") from None
-        if not (math.isfinite(fv) and ok(fv)):
-            raise ParameterError(f"{name}: expected {want}, got {v!r}")
+    radius_scale = positive_float(radius_scale, "radius_scale")
+    kappa = as_float(kappa, "kappa", lo=0.0, expected="a non-negative number")
+    ert = as_float(ert, "ert", 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
     build_ms = 0.0
     if isinstance(particles, ParticleSet):
         t0 = time.perf_counter()

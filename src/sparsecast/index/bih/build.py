@@ -51,7 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...elements import Elements, brick_elements, check_unit, voxel_elements
+from ...elements import Elements, brick_elements, voxel_elements
+from ..._util.checks import as_float, as_int, one_of, unit_float
 from ...errors import ParameterError
 from ..base import SpatialIndex, View
 from ..registry import register_index
@@ -143,10 +144,9 @@ class BIHTree:
         at ``max_depth``, or where its elements fill at least ``min_fill`` of its box
         and their density's standard deviation is at most ``max_std``."""
         md = _check_depth(max_depth)
-        mf = check_unit(min_fill, "min_fill")
-        ms = float(max_std)
-        if not ms >= 0.0:
-            raise ParameterError(f"max_std: expected a non-negative standard deviation, got {max_std!r}")
+        mf = unit_float(min_fill, "min_fill")
+        ms = max_std if max_std == math.inf else as_float(max_std, "max_std", lo=0.0,
+                                                           expected="a non-negative standard deviation")
         t0 = time.perf_counter()
         keep = np.empty(self.n_nodes, np.int64)
         lod.lod_cut(self.kind, self.child, self.box, self.count, self.elem_volume, self.mean, self.var * self.count,
@@ -166,11 +166,8 @@ class BIHTree:
     # -- packing -------------------------------------------------------------
     def pack(self, layout: str = "preorder", chunk_depth: int = 2) -> "PackedBIH":
         """Serialise to 8-byte nodes (see the module docstring)."""
-        if layout not in LAYOUTS:
-            raise ParameterError(f"layout: expected one of {LAYOUTS}, got {layout!r}")
-        cd = int(chunk_depth)
-        if cd != chunk_depth or cd < 1:
-            raise ParameterError(f"chunk_depth: expected an integer >= 1, got {chunk_depth!r}")
+        one_of(layout, "layout", LAYOUTS, expected=f"one of {LAYOUTS}")
+        cd = as_int(chunk_depth, "chunk_depth", lo=1)
         t0 = time.perf_counter()
         m = self.n_nodes
         el = self.elements
@@ -322,9 +319,7 @@ class PackedBIH:
 def _check_depth(max_depth) -> int:
     if max_depth is None:
         return 1 << 30
-    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or max_depth < 0:
-        raise ParameterError(f"max_depth: expected None or a non-negative integer, got {max_depth!r}")
-    return int(max_depth)
+    return as_int(max_depth, "max_depth", lo=0, expected="None or a non-negative integer")
 
 
 def build_bih(elements: Elements, variant: str = "elaborate") -> BIHTree:
@@ -332,8 +327,7 @@ def build_bih(elements: Elements, variant: str = "elaborate") -> BIHTree:
 
     An empty element set gives a tree of 0 nodes (renderers draw the background).
     """
-    if variant not in VARIANTS:
-        raise ParameterError(f"variant: expected one of {VARIANTS}, got {variant!r}")
+    one_of(variant, "variant", VARIANTS, expected=f"one of {VARIANTS}")
     t0 = time.perf_counter()
     n = len(elements)
     lo = np.array(elements.lo, np.float64, order="C", copy=True)
@@ -426,22 +420,15 @@ class BIH(SpatialIndex):
                  min_fill: float = 0.75, max_std: float = 0.01, layout: str = "preorder",
                  chunk_depth: int = 2) -> None:
         super().__init__(volume, tf)
-        if mode not in MODES:
-            raise ParameterError(f"mode: expected one of {MODES}, got {mode!r}")
-        if variant not in VARIANTS:
-            raise ParameterError(f"variant: expected one of {VARIANTS}, got {variant!r}")
+        one_of(mode, "mode", MODES, expected=f"one of {MODES}")
+        one_of(variant, "variant", VARIANTS, expected=f"one of {VARIANTS}")
         self.mode = mode
         self.exact = mode == "ess"
         ph = self.build_phases
         clock = time.perf_counter
         t0 = clock()
         if mode == "ess":
-            try:
-                b = int(brick) if not isinstance(brick, bool) else 0
-            except (TypeError, ValueError):
-                b = 0
-            if b != brick or not 2 <= b <= 64:
-                raise ParameterError(f"brick: expected an integer in 2..64 (voxels per edge), got {brick!r}")
+            b = as_int(brick, "brick", 2, 64, expected="an integer in 2..64 (voxels per edge)")
             self.brick = b
             el = brick_elements(volume, tf, b)
             t1 = clock()

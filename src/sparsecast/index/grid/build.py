@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from ...errors import ParameterError
+from ..._util.checks import as_int, one_of
 from ..base import SpatialIndex, View
 from ..registry import register_index
 from .traversal import GridRecord
@@ -37,13 +37,8 @@ CELL_SIZES = (4, 8, 16, 32, 64)
 
 
 def _check_cell(cell) -> int:
-    try:
-        c = int(cell)
-    except (TypeError, ValueError):
-        raise ParameterError(f"cell: expected an integer, got {cell!r}") from None
-    if c not in CELL_SIZES:
-        raise ParameterError(f"cell: expected one of {CELL_SIZES} voxels, got {cell!r}")
-    return c
+    expected = f"one of {CELL_SIZES} voxels"
+    return one_of(as_int(cell, "cell", expected=expected), "cell", CELL_SIZES, expected=expected)
 
 
 class _CellGrid(SpatialIndex):

@@ -45,7 +45,7 @@ import time
 
 import numpy as np
 
-from ...errors import ParameterError
+from ..._util.checks import as_float, as_int
 from ..base import SpatialIndex, View
 from ..registry import register_index
 from . import occupancy
@@ -188,15 +188,10 @@ class KdTree(SpatialIndex):
     def __init__(self, volume, tf, bins: int = 32, bin_levels: int = 64,
                  min_frac: float = 0.1, min_leaf: int = 8) -> None:
         super().__init__(volume, tf)
-        self.bins = _int_param(bins, "bins", 0)
-        self.bin_levels = _int_param(bin_levels, "bin_levels", 0)
-        self.min_leaf = _int_param(min_leaf, "min_leaf", 1)
-        try:
-            self.min_frac = float(min_frac)
-        except (TypeError, ValueError):
-            raise ParameterError(f"min_frac: expected a number in [0, 1), got {min_frac!r}") from None
-        if not 0.0 <= self.min_frac < 1.0:
-            raise ParameterError(f"min_frac: expected a number in [0, 1), got {min_frac!r}")
+        self.bins = as_int(bins, "bins", lo=0)
+        self.bin_levels = as_int(bin_levels, "bin_levels", lo=0)
+        self.min_leaf = as_int(min_leaf, "min_leaf", lo=1)
+        self.min_frac = as_float(min_frac, "min_frac", 0.0, 1.0, hi_open=True)
         self.cells = CellOccupancy(volume, tf)
         self.build_phases.update(self.cells.phases)
         t0 = time.perf_counter()
@@ -343,15 +338,3 @@ class DeepKdTree(KdTree):
     def traversal_record(self, view: View) -> KdStackRecord:
         return KdStackRecord(self.node_axis, self.node_child, self.node_lo, self.node_hi,
                              2 * max(self.height, 1) + 4)
-
-
-def _int_param(value, name: str, lo: int) -> int:
-    if isinstance(value, bool):
-        raise ParameterError(f"{name}: expected an integer >= {lo}, got {value!r}")
-    try:
-        v = int(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name}: expected an integer >= {lo}, got {value!r}") from None
-    if v != value or v < lo:
-        raise ParameterError(f"{name}: expected an integer >= {lo}, got {value!r}")
-    return v

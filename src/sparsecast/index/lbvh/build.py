@@ -56,7 +56,7 @@ import time
 
 import numpy as np
 
-from ...errors import ParameterError
+from ..._util.checks import as_float, as_int, one_of
 from ...kernels.bricks import brick_minmax
 from ..base import SpatialIndex, View
 from ..registry import register_index
@@ -71,23 +71,10 @@ SORT = "radix"  # measured: 2-4x faster than argsort up to 10^5..10^6 keys, on p
 
 
 def _check_options(brick, prune, voting):
-    try:
-        b = int(brick)
-    except (TypeError, ValueError):
-        raise ParameterError(f"brick: expected an integer, got {brick!r}") from None
-    if b != brick or not 2 <= b <= 64:
-        raise ParameterError(f"brick: expected an integer in 2..64 (voxels per edge), got {brick!r}")
+    b = as_int(brick, "brick", 2, 64, expected="an integer in 2..64 (voxels per edge)")
     if prune is not None:
-        try:
-            p = float(prune)
-        except (TypeError, ValueError):
-            raise ParameterError(f"prune: expected None or a fill ratio in (0, 1], got {prune!r}") from None
-        if not 0.0 < p <= 1.0:
-            raise ParameterError(f"prune: expected None or a fill ratio in (0, 1], got {prune!r}")
-        prune = p
-    if voting not in VOTING:
-        raise ParameterError(f"voting: expected one of {VOTING}, got {voting!r}")
-    return b, prune, voting
+        prune = as_float(prune, "prune", 0.0, 1.0, lo_open=True, expected="None or a fill ratio in (0, 1]")
+    return b, prune, one_of(voting, "voting", VOTING, expected=f"one of {VOTING}")
 
 
 def brick_grid_shape(shape, brick: int) -> tuple[int, int, int]:
