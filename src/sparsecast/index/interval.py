@@ -81,6 +81,13 @@ def coalesces(record):  # pragma: no cover
     raise NotImplementedError("coalesces is only callable from jitted code")
 
 
+# The generic overloads below match every record type, a user's or a test's
+# too, so they are not cached on their own: Numba's cache index pickles each
+# signature, and a record class a later process cannot import would make that
+# index unloadable. (They are compiled into the driver, whose cache is used only
+# for the package's own records; see render.driver.tiles_kernel.)
+
+
 def record_class(numba_type):
     """The Python class behind a record's Numba type (None for other types).
 
@@ -93,7 +100,7 @@ def _lattice(numba_type) -> bool:
     return bool(getattr(record_class(numba_type), "LATTICE", True))
 
 
-@overload(coalesces, jit_options={"cache": True}, inline="always")
+@overload(coalesces, inline="always")
 def _coalesces(record):
     if record_class(record) is None:
         return None
@@ -102,7 +109,7 @@ def _coalesces(record):
     return lambda record: False
 
 
-@overload(make_scratch, jit_options={"cache": True}, inline="always")
+@overload(make_scratch, inline="always")
 def _no_scratch(record):
     cls = record_class(record)
     if cls is None or getattr(cls, "SCRATCH", False):
@@ -114,7 +121,7 @@ def _no_scratch(record):
     return impl
 
 
-@overload(integrate, jit_options={"cache": True, "error_model": "numpy"})
+@overload(integrate, jit_options={"error_model": "numpy"})
 def _integrate_lattice(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
                        shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
     if record_class(record) is None or not _lattice(record):

@@ -76,6 +76,6 @@ def _use(typingctx, x):
     return types.none(x), codegen
 
 
-@overload(keep_alive, jit_options={"cache": True})
+@overload(keep_alive)  # any type, a foreign record too: not cached (see index.interval)
 def _keep_alive(x):
     return lambda x: _use(x)

@@ -15,7 +15,7 @@ from ..image import Image
 from ..index import SpatialIndex, View, build_index
 from ..transfer import TransferFunction
 from ..volume import Volume
-from .driver import dvr_tiles
+from .driver import tiles_kernel
 from .frame import Frame
 from .schedule import run_tiles
 from .options import (
@@ -165,7 +165,7 @@ def render(
     samples = np.empty((h, w), np.int32)
     nonempty = np.empty((h, w), np.int32)
     t0 = time.perf_counter()
-    run_tiles(dvr_tiles, w, h, record, data, frame, init, rgba, samples, nonempty)
+    run_tiles(tiles_kernel(record), w, h, record, data, frame, init, rgba, samples, nonempty)
     ms = (time.perf_counter() - t0) * 1e3
     n_samples = int(samples.sum(dtype=np.int64))
     stats: dict[str, Any] = {
@@ -241,7 +241,7 @@ def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
         return 0.0
     t0 = time.perf_counter()
     tiny_init = init[:1, :1] if init.shape[0] else init
-    dvr_tiles(0, 1, record, data, frame, tiny_init, np.empty((1, 1, 4), np.float32),
-              np.empty((1, 1), np.int32), np.empty((1, 1), np.int32))
+    tiles_kernel(record)(0, 1, record, data, frame, tiny_init, np.empty((1, 1, 4), np.float32),
+                         np.empty((1, 1), np.int32), np.empty((1, 1), np.int32))
     _WARM.add(key)
     return (time.perf_counter() - t0) * 1e3

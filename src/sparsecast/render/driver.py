@@ -33,7 +33,7 @@ from ..kernels.ray import clip_lattice
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
 
-__all__ = ["dvr_tile", "dvr_tiles"]
+__all__ = ["dvr_tile", "dvr_tiles", "dvr_tiles_uncached", "tiles_kernel"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -177,3 +177,30 @@ def dvr_tiles(first, last, record, data, frame, init, out_rgba, out_samples, out
     """
     for tile in range(first, last):
         dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty)
+
+
+# The same driver without the on-disk cache, for records defined outside this
+# package (a user's or a test's own index). Numba's cache index for a function
+# pickles every signature it holds, so one record class that a later process
+# cannot import would make every later cache load of ``dvr_tile`` fail.
+_dvr_tile_uncached = njit(error_model="numpy")(dvr_tile.py_func)
+
+
+@njit(nogil=True)
+def dvr_tiles_uncached(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty):
+    """:func:`dvr_tiles` without the on-disk cache (records from outside the package)."""
+    for tile in range(first, last):
+        _dvr_tile_uncached(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty)
+
+
+def tiles_kernel(record):
+    """:func:`dvr_tiles` for the package's own records, else :data:`dvr_tiles_uncached`."""
+    return dvr_tiles if _own(record) else dvr_tiles_uncached
+
+
+def _own(value) -> bool:
+    """Whether ``value`` and every record nested in it are classes of this package."""
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return type(value).__module__.startswith("sparsecast.") and all(_own(v) for v in value)
+    return True
+

@@ -80,7 +80,7 @@ def widen(t_near, t_far, t_lo, t_hi):
     return max(t_near - e, t_lo), min(t_far + e, t_hi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     """From position ``j`` of the leaf list, the next leaf the ray meets:
     ``(t0, t1, j_after)``, ``t0 > t1`` when none is left."""
