@@ -26,3 +26,14 @@ def shared_data_dir() -> Path:
 def rng() -> np.random.Generator:
     """A seeded random generator, fresh for every test."""
     return np.random.default_rng(20240611)
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A 12^3 random float32 volume, a viridis TF and an orbit camera (for quick checks)."""
+    from render_helpers import random_volume
+    import sparsecast as sc
+
+    rng = np.random.default_rng(3)
+    vol = random_volume(rng, (12, 12, 12), "float32")
+    return vol, sc.TransferFunction.preset("viridis", (0.0, 1.0)), sc.Camera.orbit(vol, 30, 20)

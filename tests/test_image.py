@@ -7,17 +7,9 @@ import numpy as np
 import pytest
 
 import sparsecast as sc
-from sparsecast import Camera, ParameterError, TransferFunction
-from render_helpers import random_volume
+from sparsecast import ParameterError
 
 
-@pytest.fixture(scope="module")
-def small():
-    rng = np.random.default_rng(3)
-    vol = random_volume(rng, (12, 12, 12), "float32")
-    tf = TransferFunction.preset("viridis", (0.0, 1.0))
-    cam = Camera.orbit(vol, 30, 20)
-    return vol, tf, cam
 
 
 

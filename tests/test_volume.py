@@ -8,18 +8,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sparsecast import Camera, ParameterError, TransferFunction, Volume
-from render_helpers import random_volume
+from sparsecast import ParameterError, Volume
 from reference import trilinear
 
 
-@pytest.fixture(scope="module")
-def small():
-    rng = np.random.default_rng(3)
-    vol = random_volume(rng, (12, 12, 12), "float32")
-    tf = TransferFunction.preset("viridis", (0.0, 1.0))
-    cam = Camera.orbit(vol, 30, 20)
-    return vol, tf, cam
 
 
 

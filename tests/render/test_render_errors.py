@@ -8,19 +8,12 @@ import pytest
 
 import sparsecast as sc
 from sparsecast import Camera, ParameterError, TransferFunction, TransferFunctionError, Volume, VolumeDataError
-from render_helpers import assert_matches_reference, random_volume
+from render_helpers import assert_matches_reference
 
 
 # ---------------------------------------------------------------------------------
 # bad input
 # ---------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def small():
-    rng = np.random.default_rng(3)
-    vol = random_volume(rng, (12, 12, 12), "float32")
-    tf = TransferFunction.preset("viridis", (0.0, 1.0))
-    cam = Camera.orbit(vol, 30, 20)
-    return vol, tf, cam
 
 
 @pytest.mark.parametrize(
