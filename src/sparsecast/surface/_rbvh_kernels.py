@@ -16,6 +16,8 @@ import math
 
 from numba import njit
 
+from ..kernels.ray import inverse, slab
+
 #: depth of a texel that no primitive covers
 EMPTY = -1e30
 #: below this a depth counts as empty (robust to the float32 rounding of EMPTY)
@@ -28,15 +30,9 @@ NORMAL_SCALE = 127.0
 
 @njit(cache=True, inline="always")
 def _slab_tile(o, d, lo, hi, t0, t1):
-    if d == 0.0:
-        if o < lo or o > hi:
-            return 1.0, 0.0
-        return t0, t1
-    a = (lo - o) / d
-    b = (hi - o) / d
-    if a > b:
-        a, b = b, a
-    return max(t0, a), min(t1, b)
+    """``[t0, t1]`` restricted to one slab of a tile's box (the shared slab routine)."""
+    inv, flat = inverse(d)
+    return slab(o, inv, flat, lo, hi, t0, t1)
 
 
 @njit(cache=True, inline="always")
