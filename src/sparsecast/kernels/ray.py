@@ -151,6 +151,48 @@ def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, 
     return k_lo, k_hi, t_lo, t_hi
 
 
+@njit(cache=True, inline="always")
+def clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi):
+    """Restrict a ray's interval and lattice range to the half-spaces of ``planes``.
+
+    Parameters
+    ----------
+    ox, oy, oz, dx, dy, dz : float
+        Index-space ray.
+    planes : (m, 4) float64
+        Index-space half-spaces ``n . x >= c`` as rows ``(nx, ny, nz, c)``.
+    dt, t_lo, t_hi, k_lo, k_hi
+        The step and what :func:`clip_lattice` returned.
+
+    Returns
+    -------
+    k_lo, k_hi, t_lo, t_hi
+        Narrowed (``k_lo > k_hi``: no sample left). A lattice sample is kept iff its
+        ``t`` passes every plane's bound, ``ceil`` / ``floor`` of ``t / dt`` as for
+        a closed box face.
+    """
+    for p in range(planes.shape[0]):
+        nd = planes[p, 0] * dx + planes[p, 1] * dy + planes[p, 2] * dz
+        f0 = planes[p, 0] * ox + planes[p, 1] * oy + planes[p, 2] * oz - planes[p, 3]
+        if nd == 0.0:
+            if f0 < 0.0:
+                return 1, 0, t_lo, t_hi  # parallel and outside
+            continue
+        t = -f0 / nd
+        if nd > 0.0:  # entering the half-space at t
+            if t > t_lo:
+                t_lo = t
+                if t_lo > t_hi:
+                    return 1, 0, t_lo, t_hi
+                k_lo = max(k_lo, int(math.ceil(t / dt)))
+        elif t < t_hi:  # leaving it at t
+            t_hi = t
+            if t_lo > t_hi:
+                return 1, 0, t_lo, t_hi
+            k_hi = min(k_hi, int(math.floor(t / dt)))
+    return k_lo, k_hi, t_lo, t_hi
+
+
 @njit(cache=True)
 def _open_face(o, inv, flat, lo, hi, open_lo, open_hi, dt, t_lo, t_hi, k_lo, k_hi):
     """Tighten ``[k_lo, k_hi]`` by one axis's open faces (see :func:`clip_lattice`)."""

@@ -23,9 +23,12 @@ from .options import (
     rect_bounds, shading_array,
 )
 
-__all__ = ["render", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "DEFAULT_SHADING"]
+__all__ = ["render", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "DEFAULT_SHADING"]
 
 MAX_SAMPLES_PER_RAY = 1 << 22
+
+#: clip planes a render takes at most
+MAX_CLIP_PLANES = 6
 
 
 def render(
@@ -42,6 +45,7 @@ def render(
     background: str | Sequence[float] = "transparent",
     clip_box: Sequence[Sequence[float]] | None = None,
     clip_open: Sequence[Sequence[bool]] | None = None,
+    clip_planes: Sequence[tuple[Sequence[float], Sequence[float]]] | None = None,
     initial: np.ndarray | None = None,
     rect: Sequence[int] | None = None,
     **index_options: Any,
@@ -81,6 +85,9 @@ def render(
         not contain their plane: a sample exactly on an open face is not taken.
         Two boxes sharing a face, open in one and closed in the other, never both
         take a sample on it. Default: all closed.
+    clip_planes : sequence of (point, normal), optional
+        Up to :data:`MAX_CLIP_PLANES` world-space planes; each keeps the side its
+        normal points to (``normal . (x - point) >= 0``). Combined with ``clip_box``.
     initial : (h, w, 4) float32, optional
         Premultiplied RGBA already accumulated in front of the clip box, per
         pixel of the rendered rectangle: rays continue from it (and stop at once
@@ -156,7 +163,7 @@ def render(
         table=np.ascontiguousarray(tf.opacity_table(dt, unit), dtype=np.float32),
         v_lo=float(tf.value_range[0]), scale=float(tf.scale),
         clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
-        any_open=bool(open_lo.any() or open_hi.any()),
+        any_open=bool(open_lo.any() or open_hi.any()), planes=_planes(volume, clip_planes),
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
     data = volume.data
@@ -225,6 +232,32 @@ def _clip(volume: Volume, clip_box, clip_open):
     open_hi = flags[1] & (c_hi <= hi)
     return (np.ascontiguousarray(np.maximum(lo, c_lo)), np.ascontiguousarray(np.minimum(hi, c_hi)),
             np.ascontiguousarray(open_lo), np.ascontiguousarray(open_hi))
+
+
+def _planes(volume: Volume, clip_planes) -> np.ndarray:
+    """World-space ``(point, normal)`` planes as index-space rows ``(nx, ny, nz, c)``, ``n . x >= c``.
+
+    With ``world = origin + spacing * x``: ``n_w . (world - p) >= 0`` is
+    ``(n_w * spacing) . x >= n_w . (p - origin)``.
+    """
+    if clip_planes is None:
+        return np.zeros((0, 4), np.float64)
+    try:
+        planes = [np.array(p, dtype=np.float64) for p in clip_planes]
+    except (TypeError, ValueError):
+        planes = [np.zeros(0)]
+    if len(planes) > MAX_CLIP_PLANES or any(p.shape != (2, 3) or not np.all(np.isfinite(p)) for p in planes):
+        raise ParameterError(
+            f"clip_planes: expected at most {MAX_CLIP_PLANES} planes ((px, py, pz), (nx, ny, nz)) of finite "
+            f"numbers, got {clip_planes!r}"
+        )
+    rows = np.zeros((len(planes), 4), np.float64)
+    for i, (point, normal) in enumerate(planes):
+        if not np.any(normal):
+            raise ParameterError(f"clip_planes[{i}]: expected a non-zero normal, got {tuple(normal)}")
+        rows[i, :3] = normal * volume.spacing
+        rows[i, 3] = float(normal @ (point - volume.origin))
+    return rows
 
 
 _WARM: set[tuple] = set()

@@ -29,7 +29,7 @@ from numba import njit
 from ..index.interval import coalesces, integrate, make_scratch, next_interval, start_ray
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import index_space_ray
-from ..kernels.ray import clip_lattice
+from ..kernels.ray import clip_lattice, clip_planes
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
 
@@ -94,6 +94,7 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     cx0, cy0, cz0, cx1, cy1, cz1 = lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
     ox0, oy0, oz0, ox1, oy1, oz1 = olo[0], olo[1], olo[2], ohi[0], ohi[1], ohi[2]
     any_open = frame.any_open
+    planes = frame.planes
     x0, x1, y0, y1 = tile_bounds(tile, w, h)
     for py in range(y0, y1):
         for px in range(x0, x1):
@@ -117,6 +118,8 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                 ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
                 ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt,
             )
+            if k_lo <= k_hi and planes.shape[0] > 0:
+                k_lo, k_hi, t_lo, t_hi = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi)
             if k_lo <= k_hi and a < ert:
                 state = start_ray(record, scratch, ray, t_lo, t_hi)
                 k_next = k_lo

@@ -42,6 +42,8 @@ class Frame(NamedTuple):
         Clip faces that exclude samples lying exactly on them.
     any_open : bool
         Whether any clip face is open.
+    planes : (m, 4) float64
+        Index-space clip half-spaces ``n . x >= c`` as rows ``(nx, ny, nz, c)``; m may be 0.
     """
 
     cam: np.ndarray
@@ -63,3 +65,4 @@ class Frame(NamedTuple):
     open_lo: np.ndarray
     open_hi: np.ndarray
     any_open: bool
+    planes: np.ndarray
