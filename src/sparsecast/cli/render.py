@@ -10,7 +10,7 @@ import typer
 
 from .._util.checks import fail
 from .app import (
-    AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
+    AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
 )
 from .inputs import load_input, make_tf
@@ -41,6 +41,7 @@ def render(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    allow_outside_data: AllowOutsideOpt = False,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
     from ..camera import Camera
@@ -48,7 +49,7 @@ def render(
 
     width, height = parse_size(size)
     t0 = time.perf_counter()
-    vol = load_input(file, dims, dtype, spacing)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
         err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
