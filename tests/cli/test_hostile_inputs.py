@@ -31,3 +31,20 @@ def test_fifo_volume_is_refused_not_waited_on(monkeypatch, capsys, tmp_path):
     os.mkfifo(tmp_path / "p.nrrd")
     code, _, err = run_cli(monkeypatch, capsys, "info", str(tmp_path / "p.nrrd"))
     assert code == 2 and "not a regular file" in err
+
+
+def test_full_width_digits_and_orphan_raw_options(monkeypatch, capsys):
+    from sparsecast.cli.parse import parse_dims, parse_size
+    from sparsecast.errors import ParameterError
+    import pytest
+
+    with pytest.raises(ParameterError, match="--size"):
+        parse_size("３２x３２")
+    with pytest.raises(ParameterError, match="--dims"):
+        parse_dims("４x4x4")
+    assert parse_size("32x16") == (32, 16)
+    for opt, value in (("--spacing", "1,1,2"), ("--dims", "4x4x4"), ("--dtype", "uint8")):
+        code, _, err = run_cli(monkeypatch, capsys, "info", opt, value)
+        assert code == 2 and opt in err and "only apply to a volume FILE" in err
+    code, _, err = run_cli(monkeypatch, capsys, "render", "--size", "３２x３２")
+    assert code == 2 and "--size" in err

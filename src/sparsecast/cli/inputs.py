@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+from ..errors import ParameterError
 from .parse import parse_dims, parse_pair, parse_spacing
 
 __all__ = ["load_input", "make_tf"]
@@ -23,6 +24,12 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
     from ..io import load_volume
 
     if file is None:
+        given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing)) if v]
+        if given:  # silently ignoring them would render the demo as if they applied
+            raise ParameterError(
+                f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
+                f"has its own layout)"
+            )
         return demo_volume()
     kw = {}
     if dims:
