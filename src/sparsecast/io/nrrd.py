@@ -125,7 +125,12 @@ def _field(header: dict, name: str, default):
 
 def _data_path(path: Path, name: str, allow_outside: bool) -> Path:
     folder = Path(os.path.abspath(path)).parent.resolve()
-    target = (folder / name).resolve()
+    if not name or "\x00" in name or len(name) > 4096:
+        raise FileFormatError(f"{str(path)!r}: data file {name[:100]!r} is not a usable file name")
+    try:
+        target = (folder / name).resolve()
+    except (OSError, RuntimeError) as exc:  # a symlink loop, a name too long
+        raise FileFormatError(f"{str(path)!r}: data file {name[:100]!r}: {exc}") from None
     if not allow_outside and not target.is_relative_to(folder):
         raise FileFormatError(
             f"{str(path)!r}: data file {name!r} resolves to {str(target)!r}, outside the header's "
