@@ -83,13 +83,13 @@ def test_failed_save_leaves_nothing(tmp_path, opaque_image, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(PILImage.Image, "save", boom)
-    with pytest.raises(OSError):
+    with pytest.raises(sc.FileFormatError, match="cannot write: disk full"):
         opaque_image.save(tmp_path / "out.png")
     assert list(tmp_path.iterdir()) == []
 
     existing = tmp_path / "keep.png"
     existing.write_bytes(b"old content")
-    with pytest.raises(OSError):
+    with pytest.raises(sc.FileFormatError, match="cannot write: disk full"):
         opaque_image.save(existing)
     assert existing.read_bytes() == b"old content"
     assert sorted(x.name for x in tmp_path.iterdir()) == ["keep.png"]

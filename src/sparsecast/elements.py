@@ -229,6 +229,8 @@ class ParticleSet:
             if col.ndim != 2 or col.shape[0] != c.shape[0] or col.shape[1] not in (3, 4):
                 raise ParameterError(f"{name}: colors: expected shape ({c.shape[0]}, 3), got {col.shape}")
             col = col[:, :3]
+            if not np.all(np.isfinite(col)):  # NaN compares false to both bounds below
+                raise ParameterError(f"{name}: colors: expected finite values in [0, 1], found NaN or Inf")
             if col.size and (col.min() < 0 or col.max() > 1):
                 raise ParameterError(f"{name}: colors: expected values in [0, 1]")
         self.centers = c

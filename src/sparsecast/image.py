@@ -12,9 +12,11 @@ import numpy as np
 from .errors import ParameterError
 from ._util.atomic import atomic_path
 
-__all__ = ["Image"]
+__all__ = ["Image", "IMAGE_SUFFIXES"]
 
 _PIL_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp"}
+#: every suffix :meth:`Image.save` writes
+IMAGE_SUFFIXES = frozenset(_PIL_SUFFIXES | {".npy"})
 
 
 class Image:
@@ -61,7 +63,9 @@ class Image:
         """Write the image atomically.
 
         ``.png`` (and other Pillow formats) store 8-bit straight RGBA (JPEG and BMP
-        drop alpha); ``.npy`` stores the float32 premultiplied array unchanged.
+        drop alpha); ``.npy`` stores the float32 premultiplied array unchanged. A
+        symlink is written through (its target is replaced); a failed write (disk
+        full, read-only) raises FileFormatError and leaves no partial file.
         """
         p = Path(path)
         suffix = p.suffix.lower()

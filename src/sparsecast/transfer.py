@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FileFormatError, ParameterError, TransferFunctionError
+from .errors import ParameterError, TransferFunctionError
 from ._util.atomic import atomic_path
+from .tf_schema import check_tf_dict, read_tf_file
 from .kernels.classify import classify_ranges, entry_span, range_is_empty
 
 __all__ = ["TransferFunction", "PRESETS"]
@@ -285,18 +286,14 @@ class TransferFunction:
 
     @classmethod
     def from_dict(cls, d: dict, *, source: str = "dict") -> "TransferFunction":
+        """A TF from the fields :meth:`to_dict` writes, checked against the schema of
+        :mod:`sparsecast.tf_schema` (errors name the field)."""
+        f = check_tf_dict(d, source)
         try:
-            return cls(
-                d["points"],
-                tuple(d["value_range"]),
-                table_size=int(d.get("table_size", 1024)),
-                unit_distance=d.get("unit_distance"),
-                name=str(d.get("name", "custom")),
-            )
-        except (KeyError, TypeError) as exc:
-            raise TransferFunctionError(
-                f"{source}: not a sparsecast transfer function (missing or bad field: {exc})"
-            ) from exc
+            return cls(f["points"], f["value_range"], table_size=f["table_size"],
+                       unit_distance=f["unit_distance"], name=f["name"])
+        except TransferFunctionError as exc:
+            raise TransferFunctionError(f"{source}: {exc}") from None
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the TF as JSON (atomically)."""
@@ -306,17 +303,16 @@ class TransferFunction:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "TransferFunction":
-        """Read a TF written by :meth:`save`."""
+        """Read a TF written by :meth:`save` (a regular file of at most 4 MiB).
+
+        Raises
+        ------
+        TransferFunctionError
+            Not a regular file, too large, not JSON, or a field that does not fit the
+            schema of :mod:`sparsecast.tf_schema` (the message names it).
+        """
         p = Path(path)
-        try:
-            d = json.loads(p.read_text())
-        except FileNotFoundError as exc:
-            raise FileFormatError(f"{p}: transfer-function file not found") from exc
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise FileFormatError(f"{p}: not a readable JSON transfer function ({exc})") from exc
-        if not isinstance(d, dict):
-            raise FileFormatError(f"{p}: expected a JSON object, found {type(d).__name__}")
-        return cls.from_dict(d, source=str(p))
+        return cls.from_dict(read_tf_file(p), source=str(p))
 
     def with_range(self, value_range: tuple[float, float]) -> "TransferFunction":
         """The same shape of TF stretched over another value range."""

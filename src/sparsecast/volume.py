@@ -184,6 +184,27 @@ class Volume:
         lo, hi = self.bounds
         return float(np.linalg.norm(hi - lo))
 
+    def require_renderable(self) -> None:
+        """Refuse a volume the ray caster cannot show: fewer than 2 voxels along an axis.
+
+        Voxels are lattice points and the rendered domain is the box between the
+        first and last voxel centres, so an axis of one voxel gives a box of zero
+        thickness that every ray crosses without taking a sample: the image would be
+        empty from every view. Raising says so instead of returning a blank image.
+
+        Raises
+        ------
+        VolumeDataError
+            Naming the shape and the axis.
+        """
+        thin = [axis for axis, n in zip("xyz", self.dims) if n < 2]
+        if thin:
+            raise VolumeDataError(
+                f"{self.name}: shape (nz, ny, nx) = {self.shape} has a single voxel along "
+                f"{', '.join(thin)}; rendering needs at least 2 voxels per axis (the volume is the box "
+                f"between voxel centres, of zero thickness here); stack or pad the slice"
+            )
+
     def __repr__(self) -> str:
         nx, ny, nz = self.dims
         return (

@@ -35,7 +35,7 @@ def test_shared_bunny_loads(shared_data_dir):
 
 
 def test_missing_and_unsupported_files(tmp_path):
-    with pytest.raises(FileFormatError, match="no such file"):
+    with pytest.raises(FileFormatError, match="file not found"):
         load_mesh(tmp_path / "none.ply")
     (tmp_path / "x.vtk").write_text("x")
     with pytest.raises(FileFormatError, match="unsupported suffix"):

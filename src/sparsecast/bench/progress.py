@@ -15,7 +15,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from .._util.atomic import atomic_path
 from ..errors import FileFormatError
+from ..io.files import require_regular_file
 
 __all__ = ["CaseKey", "ResultStore", "Progress", "case_key"]
 
@@ -48,37 +50,89 @@ class ResultStore:
         self.resumed = 0
         if self.path is None:
             return
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # e.g. --json under a path that is a file
+            raise FileFormatError(
+                f"journal {str(self.path)!r}: cannot create its folder {str(self.path.parent)!r} "
+                f"({exc.strerror or exc}); expected a folder path"
+            ) from None
         if fresh and self.path.exists():
             self.path.unlink()
-        if self.path.exists():
+        if self.path.exists() or self.path.is_symlink():
+            require_regular_file(self.path, "benchmark journal (JSON lines)")
             self._load()
             self.resumed = len(self.records)
 
     def _load(self) -> None:
+        """Read the journal; keep each case once and each section only with its marker.
+
+        A kill can cut the last line (dropped: that case runs again) or a section's
+        block of records (a section is journaled with one write, but a write can be
+        cut): records of a section without its ``section_done`` marker are dropped,
+        so the section reruns without duplicating them. When anything is dropped the
+        journal is rewritten (atomically) with what is kept.
+        """
         assert self.path is not None
-        text = self.path.read_text()
-        lines = text.splitlines()
-        for n, line in enumerate(lines, 1):
-            if not line.strip():
+        data = self.path.read_bytes()
+        cut = bool(data) and not data.endswith(b"\n")
+        lines = data.split(b"\n")
+        if lines and lines[-1] == b"":
+            lines.pop()
+        kept: list[dict[str, Any]] = []
+        pending: dict[Any, list[dict[str, Any]]] = {}  # section name -> its records so far
+        dirty = cut
+        for n, raw in enumerate(lines, 1):
+            if not raw.strip():
                 continue
-            try:
-                rec = json.loads(line)
-            except json.JSONDecodeError:
-                if n == len(lines) and not text.endswith("\n"):
-                    # A line cut short by a kill: drop it (that case runs again) so the
-                    # next record starts on a line of its own.
-                    with open(self.path, "r+") as f:
-                        f.truncate(len(text.encode()) - len(line.encode()))
-                    return
+            rec = self._parse_line(raw, n, last=cut and n == len(lines))
+            if rec is None:
+                continue
+            if rec.get("section"):
+                pending.setdefault(rec["section"], []).append(rec)
+                continue
+            key = case_key(rec)
+            is_marker = rec.get("phase") == "section_done"
+            if key in self._keys:  # a case twice (a duplicated journal): keep the first
+                dirty = True
+                if is_marker:
+                    pending.pop(rec.get("method"), None)  # the section's second copy
+                continue
+            if is_marker:
+                kept.extend(pending.pop(rec.get("method"), []))
+            self._keys.add(key)
+            kept.append(rec)
+        if any(pending.values()):
+            dirty = True  # a section cut inside its block: it runs again, in full
+        self.records = kept
+        if dirty:
+            with atomic_path(self.path) as tmp:
+                tmp.write_text("".join(json.dumps(r, default=_jsonable) + "\n" for r in kept))
+
+    def _parse_line(self, raw: bytes, n: int, *, last: bool) -> dict[str, Any] | None:
+        """One journal line as a record; None for a last line cut short by a kill."""
+        where = f"journal {str(self.path)!r}: line {n}"
+        hint = "; expected one JSON object per line (delete the file or pass --fresh to start over)"
+        try:
+            rec = json.loads(raw.decode("utf-8"))
+        except UnicodeDecodeError:
+            if last:
+                return None
+            raise FileFormatError(f"{where} is not UTF-8 text{hint}") from None
+        except (RecursionError, ValueError):  # JSONDecodeError is a ValueError
+            if last:
+                return None
+            raise FileFormatError(f"{where} is not JSON{hint}") from None
+        if not isinstance(rec, dict):
+            raise FileFormatError(f"{where} is a JSON {type(rec).__name__}, not an object{hint}")
+        for field in _KEY_FIELDS + ("section",):
+            value = rec.get(field)
+            if value is not None and not isinstance(value, (str, int, float, bool)):
                 raise FileFormatError(
-                    f"journal {str(self.path)!r}: line {n} is not JSON; expected one record per line "
-                    "(delete the file or pass --fresh to start over)"
-                ) from None
-            self._remember(rec)
-        if text and not text.endswith("\n") and self._keys:
-            with open(self.path, "a") as f:  # the last record made it, its newline did not
-                f.write("\n")
+                    f"{where}: field {field!r} is a JSON {type(value).__name__}; expected a string, "
+                    f"number or null{hint}"
+                )
+        return rec
 
     def _remember(self, rec: dict[str, Any]) -> None:
         self.records.append(rec)
@@ -90,7 +144,10 @@ class ResultStore:
         return case_key(**fields) in self._keys
 
     def add(self, rec: dict[str, Any]) -> None:
-        """Keep ``rec`` and append it to the journal (flushed to disk)."""
+        """Keep ``rec`` and append it to the journal (flushed to disk); a case already
+        recorded is not recorded again."""
+        if not rec.get("section") and case_key(rec) in self._keys:
+            return
         self._remember(rec)
         self.extend_journal([rec])
 

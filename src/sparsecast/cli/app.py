@@ -21,6 +21,7 @@ from ..errors import SparsecastError
 __all__ = [
     "app", "main", "out", "err",
     "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
+    "AllowOutsideOpt",
     "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt",
 ]
 
@@ -47,6 +48,9 @@ ThresholdOpt = Annotated[float, typer.Option(help="Colour-map presets: transpare
 DimsOpt = Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")]
 DtypeOpt = Annotated[Optional[str], typer.Option(help="Raw files: uint8, uint16, int16, float32, float64.")]
 SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")]
+AllowOutsideOpt = Annotated[bool, typer.Option(
+    "--allow-outside-data",
+    help="NRRD: read a detached header's data file even when it lies outside the header's folder.")]
 CellOpt = Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")]
 
 # Options shared by the commands that render an image (render, render-mesh).

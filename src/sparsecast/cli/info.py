@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from .app import DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out
+from .app import AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out
 from .inputs import load_input, make_tf
 
 __all__ = ["info"]
@@ -24,6 +24,7 @@ def info(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    allow_outside_data: AllowOutsideOpt = False,
     presets: Annotated[bool, typer.Option("--presets", help="List TF presets and exit.")] = False,
     indices: Annotated[bool, typer.Option("--indices", help="List spatial indices and exit.")] = False,
 ) -> None:
@@ -37,7 +38,7 @@ def info(
     if indices:
         out.print("indices: " + ", ".join(available_indices()))
         return
-    vol = load_input(file, dims, dtype, spacing)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
     lo, hi = vol.value_range
     bricks = vol.brick_stats(brick_size)

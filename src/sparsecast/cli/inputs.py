@@ -6,18 +6,30 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
+from ..errors import ParameterError
 from .parse import parse_dims, parse_pair, parse_spacing
 
 __all__ = ["load_input", "make_tf"]
 
 
-def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str]):
+def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str],
+               allow_outside: bool = False):
     """The volume in ``file`` (raw layout and spacing from the options), or the built-in
-    demo when no file is given."""
+    demo when no file is given.
+
+    ``allow_outside`` (``--allow-outside-data``) lets a detached NRRD header name a data
+    file outside its folder; the viewer never passes it (it serves what it reads).
+    """
     from ..datasets import demo_volume
     from ..io import load_volume
 
     if file is None:
+        given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing)) if v]
+        if given:  # silently ignoring them would render the demo as if they applied
+            raise ParameterError(
+                f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
+                f"has its own layout)"
+            )
         return demo_volume()
     kw = {}
     if dims:
@@ -26,7 +38,7 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
         kw["dtype"] = dtype
     if spacing:
         kw["spacing"] = parse_spacing(spacing)
-    return load_volume(file, **kw)
+    return load_volume(file, allow_outside=allow_outside, **kw)
 
 
 def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):

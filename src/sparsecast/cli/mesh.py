@@ -10,6 +10,8 @@ import typer
 
 from .._util.checks import one_of
 from ..errors import ParameterError
+from .._util.atomic import check_output
+from ..image import IMAGE_SUFFIXES
 from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, ZoomOpt, app, out
 from .parse import parse_size
 
@@ -47,6 +49,7 @@ def render_mesh(
     if points and index != "rbvh":
         raise ParameterError("--points: point clouds are rendered with --index rbvh only")
     width, height = parse_size(size)
+    check_output(output, "-o", IMAGE_SUFFIXES)  # before any work
     t0 = time.perf_counter()
     if points:
         surface = load_points(file, radius=radius)

@@ -10,6 +10,7 @@ one line). Index specs are parsed by :func:`sparsecast.index.parse_index_spec`
 
 from __future__ import annotations
 
+import re
 from typing import Optional
 
 from .._util.checks import fail
@@ -21,18 +22,30 @@ __all__ = [
 ]
 
 
+#: an ASCII decimal integer: Python's int() also takes full-width and other Unicode
+#: digits ("３２"), which a command line should not silently accept
+_ASCII_INT = re.compile(r"[0-9]+", re.ASCII)
+
+
+def _ascii_int(text: str) -> int:
+    text = text.strip()
+    if not _ASCII_INT.fullmatch(text):
+        raise ValueError(text)
+    return int(text)
+
+
 def parse_size(size: str) -> tuple[int, int]:
-    """``"640x480"`` -> ``(640, 480)``; one number means a square (``"512"``)."""
+    """``"640x480"`` -> ``(640, 480)``; one number means a square (``"512"``). ASCII digits only."""
     parts = size.lower().split("x")
     try:
         if len(parts) == 1:
-            w = h = int(parts[0])
+            w = h = _ascii_int(parts[0])
         elif len(parts) == 2:
-            w, h = int(parts[0]), int(parts[1])
+            w, h = _ascii_int(parts[0]), _ascii_int(parts[1])
         else:
             raise ValueError
     except ValueError:
-        raise fail("--size", "WIDTHxHEIGHT like 512x512", size) from None
+        raise fail("--size", "WIDTHxHEIGHT like 512x512 (ASCII digits)", size) from None
     return w, h
 
 
@@ -56,9 +69,9 @@ def parse_numbers(text: str, name: str) -> tuple[float, ...]:
 def parse_dims(dims: str) -> tuple[int, ...]:
     """``--dims`` ``"256x256x128"`` -> ``(256, 256, 128)`` (the loader checks there are three)."""
     try:
-        return tuple(int(x) for x in dims.lower().split("x"))
+        return tuple(_ascii_int(x) for x in dims.lower().split("x"))
     except ValueError:
-        raise fail("--dims", "NXxNYxNZ like 256x256x128", dims) from None
+        raise fail("--dims", "NXxNYxNZ like 256x256x128 (ASCII digits)", dims) from None
 
 
 def parse_spacing(spacing: str) -> float | list[float]:

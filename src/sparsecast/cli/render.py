@@ -8,9 +8,10 @@ from typing import Annotated, Optional
 
 import typer
 
-from .._util.checks import fail
+from .._util.atomic import check_output
+from ..image import IMAGE_SUFFIXES
 from .app import (
-    AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
+    AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
 )
 from .inputs import load_input, make_tf
@@ -41,14 +42,20 @@ def render(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    allow_outside_data: AllowOutsideOpt = False,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
     from ..camera import Camera
     from ..render import render as do_render
 
     width, height = parse_size(size)
+    # Every output is checked before any work: a bad --array must neither cost a render
+    # nor replace -o's file before it is rejected.
+    check_output(output, "-o", IMAGE_SUFFIXES)
+    if array is not None:
+        check_output(array, "--array", {".npy"})
     t0 = time.perf_counter()
-    vol = load_input(file, dims, dtype, spacing)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
         err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
@@ -61,8 +68,6 @@ def render(
                     background=bg, **index_options)
     img.save(output)
     if array is not None:
-        if array.suffix.lower() != ".npy":
-            raise fail("--array", "a .npy file name", str(array))
         img.save(array)
     s = img.stats
     out.print(

@@ -7,7 +7,8 @@ suffix         read   write  notes
 ============== ====== ====== ==========================================================
 ``.nrrd``      yes    yes    raw / gzip / bzip2 encodings; spacing from ``space
                              directions`` (vector norms) or ``spacings``
-``.nhdr``      yes    no     detached header, data file resolved relative to it
+``.nhdr``      yes    no     detached header, data file resolved relative to it (and
+                             refused outside its folder unless ``allow_outside``)
 ``.nii``       yes    yes    on-disk dtype kept; ``scl_slope``/``scl_inter`` applied
 ``.nii.gz``    yes    yes    when set and non-trivial
 ``.raw``       yes    yes    dims/dtype explicit or from ``name_XxYxZ_dtype.raw``
@@ -51,22 +52,26 @@ class VolumeFormat:
     check_target : callable or None
         ``check_target(volume, path)`` before anything is written (a raw name that
         contradicts the volume).
+    data_file : bool
+        The header may name a separate data file: the reader takes ``allow_outside=``
+        (see :func:`~.nrrd.read_nrrd`).
     """
 
     read: Callable
     write: Callable[[Volume, Path, bool], None] | None = None
     raw_layout: bool = False
     check_target: Callable[[Volume, Path], None] | None = None
+    data_file: bool = False
 
 
-_NRRD = VolumeFormat(nrrd.read_nrrd, nrrd.write_nrrd)
+_NRRD = VolumeFormat(nrrd.read_nrrd, nrrd.write_nrrd, data_file=True)
 _NIFTI = VolumeFormat(nifti.read_nifti, nifti.write_nifti)
 _TIFF = VolumeFormat(tiff.read_tiff, tiff.write_tiff)
 
 #: suffix (lower case, ``.nii.gz`` as one) -> format, in the order messages list them
 FORMATS: dict[str, VolumeFormat] = {
     ".nrrd": _NRRD,
-    ".nhdr": VolumeFormat(nrrd.read_nrrd),  # detached header: the data file is beside it
+    ".nhdr": VolumeFormat(nrrd.read_nrrd, data_file=True),  # detached header: the data file is beside it
     ".nii": _NIFTI,
     ".nii.gz": _NIFTI,
     ".raw": VolumeFormat(raw.read_raw, raw.write_raw, raw_layout=True, check_target=raw.check_raw_name),

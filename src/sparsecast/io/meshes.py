@@ -18,6 +18,8 @@ import numpy as np
 from .._util.checks import positive_float
 from ..errors import FileFormatError
 from ..surface.mesh import MeshDataError, PointCloud, TriangleMesh
+from .files import require_regular_file
+from .npy import read_npy_array
 
 __all__ = ["load_mesh", "load_points", "MESH_SUFFIXES"]
 
@@ -27,8 +29,7 @@ MESH_SUFFIXES = (".ply", ".obj", ".stl", ".glb", ".gltf", ".off")
 def _trimesh_load(path: Path):
     import trimesh
 
-    if not path.is_file():
-        raise FileFormatError(f"{str(path)!r}: no such file")
+    require_regular_file(path, "mesh file")
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise FileFormatError(f"{str(path)!r}: unsupported suffix {suffix!r}; expected one of {', '.join(MESH_SUFFIXES)}")
@@ -102,12 +103,9 @@ def load_points(path: str | os.PathLike, *, radius: float | None = None) -> Poin
     suffix = p.suffix.lower()
     normals = None
     if suffix == ".npy":
-        if not p.is_file():
-            raise FileFormatError(f"{str(p)!r}: no such file")
-        try:
-            a = np.load(p, allow_pickle=False)
-        except Exception as exc:
-            raise FileFormatError(f"{str(p)!r}: cannot read as .npy: {exc}") from exc
+        a = read_npy_array(p, "NumPy .npy points")
+        if a.dtype.names is not None or a.dtype.kind not in "biuf":
+            raise MeshDataError(f"{str(p)!r}: array of dtype {a.dtype}; expected numbers")
         if a.ndim != 2 or a.shape[1] not in (3, 6):
             raise MeshDataError(f"{str(p)!r}: expected an (n, 3) or (n, 6) array, got shape {a.shape}")
         pts, normals = a[:, :3], (a[:, 3:] if a.shape[1] == 6 else None)

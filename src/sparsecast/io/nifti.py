@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FileFormatError
 from ..volume import Volume
+from .budget import check_declared
+from .files import file_size, require_regular_file
 from .reading import Read, read_guard
 
 __all__ = ["read_nifti", "write_nifti"]
@@ -22,8 +25,11 @@ def read_nifti(path: Path) -> Read:
     """
     import nibabel as nib
 
+    require_regular_file(path, "NIfTI file")
+    img = read_guard(path, "NIfTI", nib.load, str(path), mmap=False)
+    _check_size(path, img)
+
     def _read():
-        img = nib.load(str(path), mmap=False)
         dataobj = img.dataobj
         if nib.is_proxy(dataobj):
             # nibabel moves scl_slope/scl_inter from the header into the proxy on load
@@ -35,9 +41,9 @@ def read_nifti(path: Path) -> Read:
             raw = np.asanyarray(dataobj)
             slope, inter = img.header.get_slope_inter()
         zooms = img.header.get_zooms()
-        return img, np.array(raw), slope, inter, zooms
+        return np.array(raw), slope, inter, zooms
 
-    img, raw, slope, inter, zooms = read_guard(path, "NIfTI", _read)
+    raw, slope, inter, zooms = read_guard(path, "NIfTI", _read)
     # Drop trailing singleton axes (x, y, z, 1) which are common in the wild.
     while raw.ndim > 3 and raw.shape[-1] == 1:
         raw = raw[..., 0]
@@ -60,6 +66,21 @@ def read_nifti(path: Path) -> Read:
     if not np.all(np.isfinite(origin)):
         origin = None
     return data, spacing, origin
+
+
+def _check_size(path: Path, img) -> None:
+    """The header's shape and dtype against the file (uncompressed) and the memory limit,
+    before nibabel allocates what the header claims."""
+    shape = tuple(int(n) for n in img.header.get_data_shape())
+    dtype = img.header.get_data_dtype()
+    declared = math.prod(shape) * dtype.itemsize
+    what = f"NIfTI header (shape {shape}, {dtype.name})"
+    size = file_size(path)
+    if path.name.lower().endswith(".gz"):
+        check_declared(path, declared, what, compressed_bytes=size)
+    else:
+        offset = int(getattr(img.dataobj, "offset", 0) or 0)
+        check_declared(path, declared, what, available=size - offset)
 
 
 def write_nifti(volume: Volume, tmp: Path, compress: bool) -> None:

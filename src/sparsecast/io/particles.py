@@ -11,6 +11,7 @@ the colours. Without radii in the file every particle gets ``radius`` (default:
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,9 @@ import numpy as np
 from .._util.checks import positive_float
 from ..elements import ParticleSet
 from ..errors import FileFormatError
+from .files import require_regular_file
+from .npy import read_npy_array
+from .reading import read_guard
 
 __all__ = ["load_particles", "PARTICLE_SUFFIXES"]
 
@@ -37,36 +41,37 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
     Raises
     ------
     FileFormatError
-        Missing file, unknown suffix, or content that is not a particle table.
+        Missing or not a regular file, unknown suffix, or content that is not a
+        particle table (a header-only CSV, a PLY without ``end_header``, a
+        structured or empty ``.npy``, NaN/Inf centres, radii or colours).
     ParameterError
         ``radius`` is not a positive number.
     """
     if radius is not None:
         radius = positive_float(radius, "radius")
     p = Path(path)
-    if not p.is_file():
-        raise FileFormatError(f"{str(p)!r}: file not found")
+    require_regular_file(p, "particle file")
     suffix = p.suffix.lower()
     if suffix not in PARTICLE_SUFFIXES:
         raise FileFormatError(f"{str(p)!r}: unknown particle file suffix {suffix!r}; expected one of {PARTICLE_SUFFIXES}")
-    try:
-        if suffix == ".ply":
-            centers, radii, colors = _read_ply(p)
-        elif suffix == ".csv":
-            centers, radii, colors = _columns(_read_csv(p), p)
-        else:
-            centers, radii, colors = _columns(np.load(p, allow_pickle=False), p)
-    except FileFormatError:
-        raise
-    except (OSError, ValueError) as exc:
-        raise FileFormatError(f"{str(p)!r}: cannot read particles ({exc})") from None
+    if suffix == ".ply":
+        centers, radii, colors = read_guard(p, "PLY particles", _read_ply, p)
+    elif suffix == ".csv":
+        centers, radii, colors = _columns(read_guard(p, "CSV particles", _read_csv, p), p)
+    else:
+        centers, radii, colors = _columns(read_npy_array(p, "NumPy .npy particles"), p)
     if radii is None:
         if radius is None:
             lo, hi = (centers.min(0), centers.max(0)) if len(centers) else (np.zeros(3), np.ones(3))
             radius = max(_DEFAULT_RADIUS_FRACTION * float(np.linalg.norm(hi - lo)), 1e-6)
         radii = np.full(centers.shape[0], float(radius))
-    if colors is not None and colors.size and colors.max() > 1.0:
-        colors = colors / 255.0
+    if colors is not None:
+        if not np.all(np.isfinite(colors)):
+            bad = int(np.argmax(~np.isfinite(colors).all(axis=1)))
+            raise FileFormatError(f"{str(p)!r}: particle {bad} has a NaN or infinite colour; expected "
+                                  f"numbers in [0, 1] (or 0..255)")
+        if colors.size and colors.max() > 1.0:
+            colors = colors / 255.0
     try:
         return ParticleSet(centers, radii, colors, name=p.name)
     except ValueError as exc:
@@ -74,6 +79,10 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
 
 
 def _columns(a: np.ndarray, p: Path):
+    if a.dtype.names is not None or a.dtype.kind not in "biuf":
+        raise FileFormatError(
+            f"{str(p)!r}: array of dtype {a.dtype}; expected a plain numeric table (not structured)"
+        )
     a = np.asarray(a, dtype=np.float64)
     if a.ndim == 1 and a.size in (3, 4, 7):
         a = a[None, :]
@@ -95,10 +104,16 @@ def _read_csv(p: Path) -> np.ndarray:
         header = None
     except ValueError:
         header = cells
-    a = np.loadtxt(p, delimiter=",", skiprows=1 if header else 0, ndmin=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "input contained no data": reported below
+        a = np.loadtxt(p, delimiter=",", skiprows=1 if header else 0, ndmin=2)
+    if a.size == 0:
+        raise FileFormatError(f"{str(p)!r}: CSV holds no particle rows" + (" (only a header)" if header else ""))
     if header is None:
         return a
     want = ["x", "y", "z"]
+    if len(header) != a.shape[1]:
+        raise FileFormatError(f"{str(p)!r}: header names {len(header)} columns, rows hold {a.shape[1]}")
     missing = [c for c in want if c not in header]
     if missing:
         raise FileFormatError(f"{str(p)!r}: header {header} lacks column(s) {missing}")

@@ -13,6 +13,8 @@ from .._util.checks import as_int, fail, one_of
 from ..errors import FileFormatError, ParameterError
 from ..volume import Volume
 from .names import stem_of
+from .budget import check_declared
+from .files import file_size, require_regular_file
 from .reading import Read, read_guard
 
 __all__ = ["RAW_DTYPES", "parse_raw_name", "raw_dtype", "read_raw", "write_raw", "check_raw_name"]
@@ -150,13 +152,14 @@ def read_raw(path: Path, dims=None, dtype=None, byte_order: str = "little", head
     dt = dt.newbyteorder("<" if byte_order == "little" else ">")
     header_offset = as_int(header_offset, "header_offset", lo=0)
     expected = nx * ny * nz * dt.itemsize + header_offset
-    size = path.stat().st_size
+    size = file_size(require_regular_file(path, "raw volume file"))
     if size != expected:
         extra = f" + {header_offset} header bytes" if header_offset else ""
         raise FileFormatError(
             f"{where}: file size is {size} bytes, expected {expected} bytes "
             f"({nx}x{ny}x{nz} voxels of {dt.name}, {dt.itemsize} byte(s) each{extra})"
         )
+    check_declared(path, expected - header_offset, f"raw layout {nx}x{ny}x{nz} {dt.name}")
     arr = read_guard(
         path, "raw", np.fromfile, str(path), dtype=dt, count=nx * ny * nz, offset=header_offset
     )

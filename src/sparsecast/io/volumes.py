@@ -18,10 +18,11 @@ from typing import Literal
 import numpy as np
 
 from .._util.atomic import atomic_path
-from .._util.checks import one_of
+from .._util.checks import fail, one_of
 from ..errors import FileFormatError, ParameterError
 from ..volume import Volume
 from .formats import FORMATS, READ_SUFFIXES, WRITE_SUFFIXES
+from .files import require_regular_file
 from .names import stem_of, suffix_of
 from .raw import RAW_DTYPES, parse_raw_name
 from .tiff import read_tiff_dir
@@ -36,6 +37,17 @@ __all__ = [
 ]
 
 PathLike = str | os.PathLike
+
+
+def _as_path(path) -> Path:
+    """``path`` as a Path; bytes and other objects are refused by name (not a TypeError)."""
+    if isinstance(path, os.PathLike):
+        path = os.fspath(path)
+    if not isinstance(path, str):
+        raise fail("path", "a file path (str or os.PathLike)", path if isinstance(path, bytes) else type(path).__name__)
+    if not path or "\x00" in path:
+        raise fail("path", "a non-empty file path without NUL characters", path)
+    return Path(path)
 
 
 def _check_exists(path: Path) -> None:
@@ -69,6 +81,7 @@ def load_volume(
     byte_order: Literal["little", "big"] = "little",
     header_offset: int = 0,
     nonfinite: Literal["raise", "replace"] = "raise",
+    allow_outside: bool = False,
 ) -> Volume:
     """Load a scalar volume from a file, choosing the reader from the file name.
 
@@ -96,6 +109,10 @@ def load_volume(
         Raw files only: bytes to skip at the start of the file.
     nonfinite : {"raise", "replace"}, optional
         NaN/Inf policy passed to :class:`~sparsecast.volume.Volume`.
+    allow_outside : bool, optional
+        NRRD only: read a ``data file:`` that resolves outside the header's folder
+        (an absolute path, ``..``, a symlink out of it). Default False: such a header
+        is refused, so a header from elsewhere cannot read arbitrary files as voxels.
 
     Returns
     -------
@@ -106,9 +123,12 @@ def load_volume(
     Raises
     ------
     FileFormatError
-        Missing file, unknown suffix, unreadable / truncated / corrupt file, a file
-        that is not a 3-D scalar volume, a raw file whose size does not match
-        ``nx*ny*nz*itemsize (+ header_offset)``, or an unsupported raw dtype.
+        Missing file, not a regular file (a FIFO, a link to a device), unknown suffix,
+        unreadable / truncated / corrupt file, a file that is not a 3-D scalar volume,
+        a raw file whose size does not match ``nx*ny*nz*itemsize (+ header_offset)``,
+        an unsupported raw dtype, a header that declares more data than the file holds
+        or than :func:`~.budget.memory_limit` allows, a compressed payload longer or
+        shorter than declared, or an NRRD data file outside the header's folder.
     VolumeDataError
         The data is unusable (zero-size axis, unsupported dtype, NaN/Inf with
         ``nonfinite="raise"``); the message names the file.
@@ -127,7 +147,7 @@ def load_volume(
     >>> vol = load_volume("ct.raw", dims=(512, 512, 300), dtype="int16",
     ...                   byte_order="big", spacing=(0.5, 0.5, 1.0))  # doctest: +SKIP
     """
-    p = Path(path)
+    p = _as_path(path)
     _check_exists(p)
     one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
 
@@ -135,7 +155,8 @@ def load_volume(
     fmt = None if p.is_dir() else FORMATS.get(suffix)
     if fmt is None or not fmt.raw_layout:
         extra = [n for n, v in (("dims", dims), ("dtype", dtype)) if v is not None]
-        if header_offset:
+        if header_offset is not None and not (isinstance(header_offset, (int, np.integer))
+                                                and not isinstance(header_offset, bool) and header_offset == 0):
             extra.append("header_offset")
         if extra:
             raise ParameterError(
@@ -151,9 +172,12 @@ def load_volume(
             f"supported: {', '.join(READ_SUFFIXES)} or a directory of TIFF slices"
         )
     else:
+        require_regular_file(p, "volume file")  # a FIFO blocks, /dev/zero never ends
         name = stem_of(p)
         if fmt.raw_layout:
             arr, f_spacing, f_origin = fmt.read(p, dims, dtype, byte_order, header_offset)
+        elif fmt.data_file:
+            arr, f_spacing, f_origin = fmt.read(p, allow_outside=bool(allow_outside))
         else:
             arr, f_spacing, f_origin = fmt.read(p)
 

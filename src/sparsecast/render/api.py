@@ -106,6 +106,12 @@ def render(
         ``samples_nonempty``, ``rays``, ``build_ms`` (index built on the fly),
         ``jit_ms`` (one-off kernel compilation or cache load, kept out of ``ms``).
 
+    Raises
+    ------
+    VolumeDataError
+        The volume has fewer than 2 voxels along an axis (see
+        :meth:`Volume.require_renderable <sparsecast.volume.Volume.require_renderable>`).
+
     Notes
     -----
     Opacity correction ``1 - (1 - a) ** (dt / unit_distance)`` is applied to the TF
@@ -116,6 +122,7 @@ def render(
         volume = Volume(volume)
     if not isinstance(volume, Volume):
         raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
+    volume.require_renderable()  # a one-voxel-thick volume would render empty from every view
     if not isinstance(tf, TransferFunction):
         raise ParameterError(f"tf: expected a sparsecast.TransferFunction, got {type(tf).__name__}")
     if not isinstance(camera, Camera):

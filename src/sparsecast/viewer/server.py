@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import json
+import re
 import socket
 import threading
 import time
@@ -83,11 +84,18 @@ def _load_static() -> dict[str, tuple[bytes, str]]:
     return files
 
 
+#: a Host header: a name or IPv4 address, or an IPv6 address in brackets, then an
+#: optional ASCII port; anything else (a list, a port that is not a number) matches nothing
+_HOST_RE = re.compile(r"(?:\[(?P<v6>[0-9a-f:.]+)\]|(?P<name>[a-z0-9.-]+))(?::[0-9]{1,5})?", re.ASCII)
+
+
 def _host_only(value: str) -> str:
-    value = value.strip().lower()
-    if value.startswith("["):
-        return value[1: value.find("]")] if "]" in value else value
-    return value.rsplit(":", 1)[0] if value.count(":") == 1 else value
+    """The host part of a ``Host`` header, or ``""`` when the header is malformed
+    (``127.0.0.1:8765, evil.example`` and ``127.0.0.1:evil.example`` are)."""
+    m = _HOST_RE.fullmatch(value.strip().lower())
+    if m is None:
+        return ""
+    return m.group("v6") or m.group("name")
 
 
 def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: tuple[str, ...] | None = None):
