@@ -21,6 +21,7 @@ import numpy as np
 from .errors import ParameterError, TransferFunctionError
 from ._util.atomic import atomic_path
 from .tf_schema import check_tf_dict, read_tf_file
+from .kernels.parallel import parallel_section
 from .kernels.classify import classify_ranges, entry_span, range_is_empty
 
 __all__ = ["TransferFunction", "PRESETS"]
@@ -248,7 +249,8 @@ class TransferFunction:
             bad = int(np.count_nonzero(~(lo <= hi)))
             raise ParameterError(f"vmin/vmax: {bad} range(s) have vmin > vmax or NaN; expected vmin <= vmax")
         out = np.empty(lo.size, np.bool_)
-        classify_ranges(self._prefix, float(self.value_range[0]), self.scale, lo.ravel(), hi.ravel(), out)
+        with parallel_section():
+            classify_ranges(self._prefix, float(self.value_range[0]), self.scale, lo.ravel(), hi.ravel(), out)
         return out.reshape(lo.shape)
 
     def opacity_table(self, dt: float, unit_distance: float) -> np.ndarray:

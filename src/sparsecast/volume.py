@@ -14,6 +14,7 @@ from typing import Literal
 
 import numpy as np
 
+from .kernels.parallel import parallel_section
 from ._util.checks import as_int, one_of, vector3
 from .errors import VolumeDataError
 from .kernels.bricks import brick_minmax
@@ -237,7 +238,8 @@ class Volume:
         else:
             vmin = np.empty((nbz, nby, nbx), np.float64)
             vmax = np.empty((nbz, nby, nbx), np.float64)
-            brick_minmax(self._data, brick_size, nbz, nby, nbx, vmin, vmax)
+            with parallel_section():
+                brick_minmax(self._data, brick_size, nbz, nby, nbx, vmin, vmax)
         ms = (time.perf_counter() - t0) * 1e3
         stats = BrickStats(brick_size, vmin, vmax, ms)
         self._bricks[brick_size] = stats

@@ -7,6 +7,7 @@ from typing import Any
 
 from .._util.checks import fail
 from ..errors import ParameterError
+from ..kernels.parallel import parallel_section
 from .base import SpatialIndex
 
 _INDICES: dict[str, type[SpatialIndex]] = {}
@@ -42,7 +43,8 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
         raise ParameterError(f"index: unknown index {name!r}; expected one of: {', '.join(available_indices())}")
     t0 = time.perf_counter()
     try:
-        idx = cls(volume, tf, **options)
+        with parallel_section():  # build kernels use prange (see kernels.parallel)
+            idx = cls(volume, tf, **options)
     except TypeError as exc:
         if "unexpected keyword" not in str(exc):
             raise
