@@ -2,8 +2,9 @@
 
 Kernels run with ``nogil=True``, so Python threads run them in parallel; the
 pool hands out small chunks of tiles, so a thread that finishes an empty part of
-the screen takes the next chunk (dynamic load balancing), and the caller can stop
-between chunks. Thread count: ``numba.get_num_threads()`` (``NUMBA_NUM_THREADS``).
+the screen takes the next chunk (dynamic load balancing), and an interrupt
+(Ctrl-C) stops the frame between chunks: the caller gets KeyboardInterrupt within
+about a chunk's time (1/16 of a thread's share of the frame). Thread count: ``numba.get_num_threads()`` (``NUMBA_NUM_THREADS``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ __all__ = ["run_tiles", "n_threads"]
 #: chunks per thread: enough to balance sparse frames, few enough that the
 #: per-chunk call (argument unboxing, ~10 us) stays negligible
 CHUNKS_PER_THREAD = 16
+
+#: seconds between checks for an interrupt while a frame renders
+POLL_S = 0.02
 
 _pool: ThreadPoolExecutor | None = None
 _pool_size = 0
@@ -65,10 +69,14 @@ def run_tiles(kernel: Callable, width: int, height: int, *args) -> None:
     pool = _get_pool(threads)
     futures = [pool.submit(kernel, bounds[i], bounds[i + 1], *args) for i in range(n_chunks)]
     try:
-        done, _ = wait(futures)
+        # Short waits, so that Ctrl-C (KeyboardInterrupt) and other signals reach
+        # the caller within a chunk's time instead of at the end of the frame.
+        pending = futures
+        while pending:
+            _, pending = wait(pending, timeout=POLL_S)
     except BaseException:
         for f in futures:
-            f.cancel()
+            f.cancel()  # chunks not started yet; running ones finish into the discarded frame
         raise
-    for f in done:
+    for f in futures:
         f.result()  # re-raise a kernel's exception here
