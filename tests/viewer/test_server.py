@@ -294,3 +294,38 @@ def test_pan_moves_the_picture(client):
         cx0 = (centred.sum(axis=(0, 2)) * cols).sum() / centred.sum()
         cx1 = (panned.sum(axis=(0, 2)) * cols).sum() / panned.sum()
         assert cx1 < cx0 - 3
+
+
+def test_session_caches_stay_bounded_over_many_tf_edits(data):
+    """A long session of TF edits (each a new view) keeps its caches bounded, and
+    closing the session (the client left) frees them."""
+    import gc
+    import tracemalloc
+
+    from sparsecast.viewer.messages import IndexSpec
+    from sparsecast.viewer.session import NAIVE_CACHE
+
+    s = Session(data)
+    base = s.tf
+
+    def edit(i):
+        pts = list(base.points)
+        v, r, g, b, a = pts[-1]
+        pts[-1] = (v, r, g, b, 0.2 + 0.6 * i / 5000)  # every edit a new view
+        spec = TFSpec(tuple(pts), base.colormap, base.value_range)
+        s.render_frame(s.update(RenderRequest(seq=i, tf=spec, index=IndexSpec("naive"), width=16, height=16)))
+
+    for i in range(300):  # fills every cache (NAIVE_CACHE < 300)
+        edit(i)
+    gc.collect()
+    tracemalloc.start()
+    before = tracemalloc.take_snapshot()
+    for i in range(300, 1500):
+        edit(i)
+    gc.collect()
+    grown = sum(st.size_diff for st in tracemalloc.take_snapshot().compare_to(before, "filename"))
+    tracemalloc.stop()
+    assert len(s._naive_ms) <= NAIVE_CACHE
+    assert grown < 400 * 1024, f"{grown} bytes kept by 1200 more TF edits"  # unbounded: ~740 kB
+    s.close()
+    assert not s._naive_ms and not s._indices and not s._tfs

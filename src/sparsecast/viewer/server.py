@@ -214,6 +214,7 @@ def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: t
                 await task
             except (asyncio.CancelledError, Exception):
                 pass
+            session.close()  # free its indices and caches now, not when the socket object dies
 
     routes = [
         Route("/", page),

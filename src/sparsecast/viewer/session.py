@@ -49,6 +49,8 @@ __all__ = ["ViewerData", "Session", "tf_from_spec", "spec_from_tf", "spec_from_p
 HISTOGRAM_BINS = 128
 NAIVE_PROBE_SCALE = 0.5
 _INDEX_CACHE = 4
+#: views whose naive time a session remembers (for the speed-up readout), least recent dropped
+NAIVE_CACHE = 256
 _JPEG_QUALITY = 88
 
 
@@ -201,7 +203,7 @@ class Session:
         self.height: int | None = None
         self._tfs: OrderedDict[TFSpec, TransferFunction] = OrderedDict()
         self._indices: OrderedDict[tuple, Any] = OrderedDict()
-        self._naive_ms: dict[tuple, float] = {}
+        self._naive_ms: OrderedDict[tuple, float] = OrderedDict()
         self.frames = 0
 
     def update(self, req: RenderRequest) -> Snapshot:
@@ -261,7 +263,7 @@ class Session:
                      dt=self.data.dt, index=idx, background="black")
         st = img.stats
         if s.index.name == "naive":
-            self._naive_ms[self._view_key(s)] = st["ms"]
+            self._remember_naive(self._view_key(s), st["ms"])
         t_enc = time.perf_counter()
         payload = encode(img.rgba, s.format)
         enc_ms = (time.perf_counter() - t_enc) * 1e3
@@ -292,6 +294,20 @@ class Session:
         self.last_frame_ms = st["ms"]
         return payload, status
 
+    def _remember_naive(self, key: tuple, ms: float) -> None:
+        """Keep a view's naive time, at most :data:`NAIVE_CACHE` of them (every TF edit
+        is a new view: unbounded, this grew by megabytes over a long session)."""
+        self._naive_ms[key] = ms
+        self._naive_ms.move_to_end(key)
+        while len(self._naive_ms) > NAIVE_CACHE:
+            self._naive_ms.popitem(last=False)
+
+    def close(self) -> None:
+        """Drop every cache (the client has gone): indices, TFs, naive times."""
+        self._indices.clear()
+        self._tfs.clear()
+        self._naive_ms.clear()
+
     def needs_probe(self, s: Snapshot) -> bool:
         return not s.preview and s.index.name != "naive" and self._view_key(s) not in self._naive_ms
 
@@ -303,7 +319,7 @@ class Session:
         img = render(self.data.volume, tf, self._camera(s.camera), pw, ph, dt=self.data.dt,
                      index="naive", background="black")
         est = img.stats["ms"] * (s.width * s.height) / (pw * ph)
-        self._naive_ms[self._view_key(s)] = est
+        self._remember_naive(self._view_key(s), est)
         return {
             "type": "speedup",
             "seq": s.seq,
