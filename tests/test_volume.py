@@ -57,3 +57,11 @@ def test_brick_stats_bad_size(small):
     with pytest.raises(ParameterError, match="brick_size"):
         small[0].brick_stats(0)
 
+
+
+def test_brick_larger_than_the_volume_is_one_brick():
+    """A huge brick size (``info --brick-size 1000000``) is one brick, not a padded 13 PiB array."""
+    data = np.arange(5 * 6 * 7, dtype=np.float32).reshape(5, 6, 7)
+    bs = Volume(data).brick_stats(1_000_000)
+    assert bs.shape == (1, 1, 1)
+    assert bs.vmin[0, 0, 0] == data.min() and bs.vmax[0, 0, 0] == data.max()

@@ -229,7 +229,9 @@ class Volume:
         nbz, nby, nbx = (max(1, -(-(n - 1) // brick_size)) for n in self.shape)
         t0 = time.perf_counter()
         base = BASE_BRICK
-        if brick_size > base and brick_size % base == 0:
+        # (Only for bricks no larger than the volume: the padding of a bigger
+        # factor would allocate far more than the data, e.g. --brick-size 1000000.)
+        if brick_size > base and brick_size % base == 0 and brick_size <= max(self.shape):
             # A coarse brick's apron range is exactly the union of the apron
             # ranges of the base bricks it covers, so reduce those: no voxel pass.
             fine = self.brick_stats(base)
