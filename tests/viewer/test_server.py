@@ -71,11 +71,11 @@ def test_page_and_static_files(client):
     r = client.get("/")
     assert r.status_code == 200 and "viewer.js" in r.text
     assert "Content-Security-Policy" in r.headers
-    for name, ctype in [("viewer.js", "javascript"), ("viewer.css", "css"), ("index.html", "html")]:
+    for name, ctype in [("viewer.js", "javascript"), ("interaction.js", "javascript"), ("viewer.css", "css"), ("index.html", "html")]:
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and ctype in r.headers["content-type"]
     # The page makes no external requests: no absolute URLs in what it loads.
-    for name in ("index.html", "viewer.js", "viewer.css"):
+    for name in ("index.html", "interaction.js", "viewer.js", "viewer.css"):
         text = client.get(f"/static/{name}").text
         assert "http://" not in text and "https://" not in text and "//cdn" not in text
 

@@ -77,7 +77,7 @@ def check_host(host: str, allow_remote: bool) -> bool:
 def _load_static() -> dict[str, tuple[bytes, str]]:
     files = {}
     root = resources.files("sparsecast.viewer") / "static"
-    for name in ("index.html", "viewer.js", "viewer.css"):
+    for name in ("index.html", "interaction.js", "viewer.js", "viewer.css"):
         suffix = name[name.rfind("."):]
         files[name] = ((root / name).read_bytes(), _CONTENT_TYPES[suffix])
     return files

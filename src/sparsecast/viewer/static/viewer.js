@@ -2,6 +2,7 @@
 "use strict";
 (function () {
   const $ = (id) => document.getElementById(id);
+  const ui = window.sparsecastInteraction;  // interaction.js: drag -> opacity
   const view = $("view"), vctx = view.getContext("2d");
   const tfc = $("tf"), tctx = tfc.getContext("2d");
   const strip = $("tf-strip"), sctx = strip.getContext("2d");
@@ -176,7 +177,7 @@
   const toPx = (p) => [PAD + p[0] * (tfc.width - 2 * PAD), tfc.height - PAD - p[4] * (tfc.height - 2 * PAD)];
   const fromPx = (x, y) => [
     Math.max(0, Math.min(1, (x - PAD) / (tfc.width - 2 * PAD))),
-    Math.max(0, Math.min(1, (tfc.height - PAD - y) / (tfc.height - 2 * PAD))),
+    ui.opacityAt(y, tfc.height, PAD),
   ];
 
   function interpColour(x) {
