@@ -2,7 +2,7 @@
 "use strict";
 (function () {
   const $ = (id) => document.getElementById(id);
-  const ui = window.sparsecastInteraction;  // interaction.js: drag -> opacity
+  const ui = window.sparsecastInteraction;  // interaction.js: drag -> camera / opacity
   const view = $("view"), vctx = view.getContext("2d");
   const tfc = $("tf"), tctx = tfc.getContext("2d");
   const strip = $("tf-strip"), sctx = strip.getContext("2d");
@@ -145,8 +145,9 @@
       const clamp = (v) => Math.max(-5, Math.min(5, v));
       st.camera.pan = [clamp(drag.px - (e.clientX - drag.x) * k), clamp(drag.py + (e.clientY - drag.y) * k)];
     } else {
-      st.camera.azimuth = (((drag.az - (e.clientX - drag.x) * 0.4) % 360) + 360) % 360;
-      st.camera.elevation = Math.max(-89.9, Math.min(89.9, drag.el + (e.clientY - drag.y) * 0.4));
+      const ang = ui.orbitDrag(drag.az, drag.el, e.clientX - drag.x, e.clientY - drag.y);
+      st.camera.azimuth = ang.azimuth;
+      st.camera.elevation = ang.elevation;
     }
     syncInputs();
     request(true);
