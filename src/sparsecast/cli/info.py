@@ -35,7 +35,14 @@ def info(
         out.print("TF presets: " + ", ".join(PRESETS))
         return
     if indices:
+        from ..index import index_options
+
         out.print("indices: " + ", ".join(available_indices()))
+        # What --index NAME:KEY=VALUE accepts (--cell is cell=); printed without markup.
+        for name in available_indices():
+            opts = index_options(name)
+            listed = "any keyword" if opts is None else (", ".join(opts) or "no options")
+            out.print(f"  {name:<15} {listed}", markup=False, highlight=False)
         return
     vol = load_input(file, dims, dtype, spacing)
     tfn = make_tf(tf, vol, tf_range, threshold)

@@ -13,6 +13,7 @@ from .app import (
     AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
 )
+from ..index.registry import check_index_options
 from .inputs import load_input, make_tf
 from .parse import parse_background, parse_index_spec, parse_size
 
@@ -47,6 +48,11 @@ def render(
     from ..render import render as do_render
 
     width, height = parse_size(size)
+    # Index options are checked before any work: a typo costs no volume load.
+    index_name, index_options = parse_index_spec(index)
+    if cell is not None:
+        index_options["cell"] = cell
+        check_index_options(index_name, index_options)
     t0 = time.perf_counter()
     vol = load_input(file, dims, dtype, spacing)
     tfn = make_tf(tf, vol, tf_range, threshold)
@@ -54,9 +60,6 @@ def render(
         err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
     cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     bg = parse_background(background)
-    index_name, index_options = parse_index_spec(index)
-    if cell is not None:
-        index_options["cell"] = cell
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
                     background=bg, **index_options)
     img.save(output)
