@@ -11,7 +11,7 @@ import typer
 from .._util.checks import fail
 from .app import (
     AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
-    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
 from .inputs import load_input, make_tf
@@ -57,7 +57,7 @@ def render(
     vol = load_input(file, dims, dtype, spacing)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
-        err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
+        warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
     cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
