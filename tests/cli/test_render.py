@@ -81,7 +81,8 @@ def test_warning_for_transparent_tf(monkeypatch, capsys, tmp_path, small_volume_
 
 @pytest.mark.parametrize("args, expected", [
     (["--index", "grid-pc:cel=8"], ["unknown option 'cel'", "grid-pc takes options: cell", "did you mean 'cell'"]),
-    (["--cell", "7"], ["'naive'", "unknown option 'cell'", "cell (--cell) applies to: grid-mm, grid-pc"]),
+    (["--cell", "7"], ["'auto'", "need a named index", "cell (--cell) applies to: grid-mm, grid-pc"]),
+    (["--index", "naive", "--cell", "7"], ["'naive'", "unknown option 'cell'", "applies to: grid-mm, grid-pc"]),
     (["--index", "lbvh", "--cell", "8"], ["lbvh takes options: brick, prune, voting", "applies to: grid-mm"]),
     (["--index", "grid-pc:dt=0.5"], ["'dt' is a render parameter", "--dt"]),
     (["--index", "grid-mm:width=9"], ["'width' is a render parameter", "--size"]),

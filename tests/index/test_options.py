@@ -41,7 +41,7 @@ def test_misspelt_option_names_what_the_index_takes(small):
 def test_cell_on_an_index_without_cells_names_the_grids(small):
     vol, tf = small
     with pytest.raises(sc.ParameterError) as exc:
-        sc.render(vol, tf, sc.Camera.orbit(vol), 8, 8, cell=7)
+        sc.render(vol, tf, sc.Camera.orbit(vol), 8, 8, index="naive", cell=7)
     msg = str(exc.value)
     assert "'naive'" in msg and "no build options" in msg and "applies to: grid-mm, grid-pc" in msg
 

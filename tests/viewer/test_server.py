@@ -124,7 +124,7 @@ def test_hello_frames_tf_change_and_index_cache(client, data):
     with client.websocket_connect("/ws") as ws:
         hello = ws.receive_json()
         assert hello["type"] == "hello"
-        assert hello["indices"] == sc.available_indices()
+        assert hello["indices"] == ["auto", *sc.available_indices()]
         counts = hello["histogram"]["counts"]
         assert len(counts) == 128 and sum(counts) > 0
         assert hello["histogram"]["range"] == list(data.volume.value_range)
@@ -294,3 +294,24 @@ def test_pan_moves_the_picture(client):
         cx0 = (centred.sum(axis=(0, 2)) * cols).sum() / centred.sum()
         cx1 = (panned.sum(axis=(0, 2)) * cols).sum() / panned.sum()
         assert cx1 < cx0 - 3
+
+
+def test_auto_index_cheap_while_the_tf_is_dragged(data):
+    """The viewer's default is auto: a preview frame with a new TF (a point being
+    dragged) gets the rebuild-cheap index, the full frame after it the fast one."""
+    from sparsecast.index.auto import EDITING_INDEX, SPARSE_INDEX
+
+    s = Session(data)
+    assert s.index.name == "auto"
+    _, st = s.render_frame(s.update(RenderRequest(seq=1, width=40, height=30)))
+    assert st["index"] == SPARSE_INDEX and st["auto"]["reason"]
+    pts = list(data.tf.points)
+    pts[-1] = (*pts[-1][:4], 0.5)
+    dragged = TFSpec(tuple(pts), data.tf.colormap, data.tf.value_range)
+    _, st = s.render_frame(s.update(RenderRequest(seq=2, tf=dragged, preview=True)))
+    assert st["index"] == EDITING_INDEX and st["auto"]["editing"]
+    _, st = s.render_frame(s.update(RenderRequest(seq=3, preview=False)))
+    assert st["index"] == SPARSE_INDEX
+    # an orbit preview with the settled TF keeps the fast index
+    _, st = s.render_frame(s.update(RenderRequest(seq=4, preview=True)))
+    assert st["index"] == SPARSE_INDEX and not st["auto"]["editing"]

@@ -32,7 +32,7 @@ def render(
     zoom: ZoomOpt = 1.0,
     size: SizeOpt = "512x512",
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
-    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8.")] = "naive",
+    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8; auto picks one from the volume's occupancy under the TF.")] = "auto",
     cell: CellOpt = None,
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
@@ -68,8 +68,9 @@ def render(
             raise fail("--array", "a .npy file name", str(array))
         img.save(array)
     s = img.stats
+    chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
-        f"index {s['index']}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
         f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
     )

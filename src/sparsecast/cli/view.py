@@ -19,7 +19,7 @@ def view(
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
     threshold: ThresholdOpt = 0.1,
-    index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default grid-pc).")] = None,
+    index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default auto: chosen per frame from the occupancy, rebuild-cheap while a TF point is dragged).")] = None,
     cell: CellOpt = None,
     host: Annotated[str, typer.Option(help="Address to bind; anything but loopback needs --allow-remote.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port (0 picks a free one).")] = 8765,

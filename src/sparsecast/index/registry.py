@@ -17,6 +17,8 @@ from ..errors import ParameterError
 from .base import SpatialIndex
 
 _INDICES: dict[str, type[SpatialIndex]] = {}
+#: the name that lets build_index / render choose (sparsecast.index.auto)
+AUTO = "auto"
 
 
 def register_index(cls: type[SpatialIndex]) -> type[SpatialIndex]:
@@ -85,13 +87,19 @@ def check_index_options(name: str, options: dict[str, Any]) -> None:
     and for ``cell`` the indices that take it; a ``render()`` parameter names the
     option that sets it instead.
     """
+    if name == AUTO and options:
+        msg = (f"index 'auto': build options ({', '.join(options)}) need a named index; "
+               f"choose one with --index NAME:KEY=VALUE (indices: {', '.join(available_indices())})")
+        if "cell" in options:
+            msg += f"; cell (--cell) applies to: {', '.join(indices_taking('cell'))}"
+        raise ParameterError(msg)
     for key in options:
         if key in RENDER_PARAMETERS:
             raise ParameterError(
                 f"index {name!r}: {key!r} is a render parameter, not a build option of the index; "
                 f"set it with {RENDER_PARAMETERS[key]}"
             )
-    accepted = index_options(name)
+    accepted = () if name == AUTO else index_options(name)
     if accepted is None:
         return
     for key in options:
@@ -122,7 +130,9 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     volume : Volume
     tf : TransferFunction
     name : str
-        One of :func:`available_indices`.
+        One of :func:`available_indices`, or ``"auto"``: chosen from the volume's
+        brick occupancy under ``tf`` (see :mod:`sparsecast.index.auto`); the choice
+        and its reason are kept in the index's ``auto`` attribute.
     **options
         Passed to the index class (e.g. ``cell=8``); :func:`index_options` lists
         what each index takes.
@@ -132,8 +142,13 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     ParameterError
         An unknown index, or an option it does not take.
     """
-    cls = _index_class(name)
     check_index_options(name, options)
+    auto = None
+    if name == AUTO:
+        from .auto import choose_index  # the chooser imports this module
+
+        name, auto = choose_index(volume, tf)
+    cls = _index_class(name)
     t0 = time.perf_counter()
     try:
         idx = cls(volume, tf, **options)
@@ -143,6 +158,8 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
         raise ParameterError(f"index {name!r}: {exc}") from None
     if not idx.build_phases:
         idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
+    if auto is not None:
+        idx.auto = auto  # why "auto" chose it: render() reports it in stats["auto"]
     return idx
 
 
@@ -188,7 +205,7 @@ def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
                 continue
         else:
             options[key] = value
-    if name not in available_indices():
+    if name not in available_indices() and name != AUTO:
         raise ParameterError(f"method {spec!r}: unknown index {name!r}; expected one of {', '.join(available_indices())}")
     check_index_options(name, options)
     return name, options

@@ -26,10 +26,9 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import ParameterError, SparsecastError
-from ..index import available_indices
 from ..transfer import PRESETS
 from .messages import MessageError, parse_message
-from .session import Session, Snapshot, ViewerData
+from .session import Session, Snapshot, ViewerData, viewer_indices
 
 __all__ = ["create_app", "check_host", "ViewerServer", "LOOPBACK_HOSTS", "IDLE_PROBE_S"]
 
@@ -140,7 +139,7 @@ def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: t
         send_lock = asyncio.Lock()
         pending: list[Snapshot | None] = [None]
         wake = asyncio.Event()
-        indices = available_indices()
+        indices = viewer_indices()
 
         async def send_json(obj: dict) -> None:
             async with send_lock:

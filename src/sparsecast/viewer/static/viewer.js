@@ -65,7 +65,7 @@
     const sp = s.speedup == null ? "speedup: measuring when idle" :
       `speedup ${s.speedup.toFixed(1)}x over naive (${f1(s.naive_ms)} ms ${s.speedup_source})`;
     $("status").textContent =
-      `${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
+      `${s.auto ? "auto: " : ""}${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
       `rebuild ${s.rebuilt ? f1(s.rebuild_ms) + " ms" : "cached"} | frame ${f1(s.frame_ms)} ms | ` +
       `${(s.samples / 1e6).toFixed(2)} M samples | ${sp}`;
   }
