@@ -14,7 +14,9 @@ TOL = 1e-5
 
 
 def render_and_reference(vol, tf, cam, width, height, **kw):
-    img = sc.render(vol, tf, cam, width, height, **kw)
+    # The reference takes every lattice sample: compare it with naive, whose per-pixel
+    # sample counts it predicts (the default "auto" may skip).
+    img = sc.render(vol, tf, cam, width, height, index="naive", **kw)
     ref, ref_samples = reference_render(vol, tf, cam, width, height, **kw)
     return img, ref, ref_samples
 

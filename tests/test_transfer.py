@@ -188,3 +188,63 @@ def test_classify_rejects_inverted_or_nan_ranges():
         tf.classify(np.array([0.5]), np.array([0.2]))
     with pytest.raises(ParameterError, match="NaN"):
         tf.classify(np.array([np.nan]), np.array([0.2]))
+
+
+# ---------------------------------------------------------------------------------
+# Exact classification at table entries (issue 15, item 1)
+# ---------------------------------------------------------------------------------
+def test_ramp_from_zero_at_data_minimum_leaves_zero_bricks_empty():
+    """A TF that is 0 at the data minimum and ramps up from there (what the viewer's
+    editor produces) classifies all-zero bricks as empty."""
+    data = np.zeros((40, 40, 40), np.float32)
+    data[5:12, 5:12, 5:12] = 1.0
+    vol = Volume(data)
+    tf = TransferFunction([(0.0, 1, 1, 1, 0.0), (1.0, 1, 1, 1, 1.0)], vol.value_range)
+    assert tf.is_empty(0.0, 0.0)
+    assert not tf.is_empty(0.0, 1e-6) and not tf.is_empty(1.0, 1.0)
+    bs = vol.brick_stats(8)
+    nonempty = tf.classify(bs.vmin, bs.vmax)
+    zero = bs.vmax == 0.0
+    assert zero.any() and not nonempty[zero].any()
+    assert nonempty[~zero].all()
+
+
+_LEVELS = np.array([-1.0, -0.25, 0.0, 0.125, 0.5, 0.75, 1.0, 2.0])
+
+
+@st.composite
+def tf_with_zeros_on_levels(draw):
+    """A TF whose control points (zero opacity among them) sit exactly on data levels."""
+    xs = sorted(draw(st.lists(st.sampled_from(_LEVELS.tolist()), min_size=1, max_size=5)))
+    pts = [(x, 0.5, 0.5, 0.5, draw(st.sampled_from([0.0, 0.0, 0.3, 1.0]))) for x in xs]
+    lo = draw(st.sampled_from([-1.0, 0.0, xs[0]]))
+    hi = draw(st.sampled_from([2.0, 1.0, xs[-1]]))
+    lo, hi = min(lo, xs[0], hi), max(hi, xs[-1], lo)
+    return TransferFunction(pts, (lo, hi), table_size=draw(st.sampled_from([256, 300, 1024])))
+
+
+@given(tf_with_zeros_on_levels(), st.sampled_from(_LEVELS.tolist()))
+def test_constant_range_classified_exactly(tf, c):
+    """A constant region (all-zero bricks included) is empty iff a lookup of its value
+    has zero opacity: no table entry of weight 0 makes it non-empty."""
+    assert tf.is_empty(c, c) == (float(tf(np.array([c]))[0, 3]) == 0.0)
+
+
+@given(tf_with_zeros_on_levels(), st.sampled_from(_LEVELS.tolist()), st.sampled_from(_LEVELS.tolist()),
+       st.integers(0, 2**32 - 1))
+def test_empty_ranges_hold_no_opacity_for_any_trilinear_sample(tf, a, b, seed):
+    """Soundness: where classify says empty, trilinear samples of voxels in
+    [lo, hi] (computed as the renderer does, with an ulp of extrapolation) have
+    zero opacity."""
+    lo, hi = min(a, b), max(a, b)
+    if not tf.is_empty(lo, hi):
+        return
+    rng = np.random.default_rng(seed)
+    corners = rng.choice([lo, hi], size=(512, 8))
+    f = rng.uniform(0.0, 1.0, (512, 3))
+    f[:64] = rng.choice([0.0, 1.0, -1e-15, 1.0 + 1e-15], size=(64, 3))
+    lerp = lambda p, q, t: p + t * (q - p)  # noqa: E731  (kernels/sample.py's order)
+    c = [lerp(corners[:, 2 * i], corners[:, 2 * i + 1], f[:, 0]) for i in range(4)]
+    c0, c1 = lerp(c[0], c[1], f[:, 1]), lerp(c[2], c[3], f[:, 1])
+    v = lerp(c0, c1, f[:, 2])
+    assert np.all(tf(v)[:, 3] == 0.0)

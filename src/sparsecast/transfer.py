@@ -27,6 +27,8 @@ from .kernels.classify import classify_ranges, entry_span, range_is_empty
 __all__ = ["TransferFunction", "PRESETS"]
 
 _MIN_TABLE, _MAX_TABLE = 256, 4096
+#: baked opacities below this are stored as exactly 0 (far below one 16-bit step)
+_ALPHA_FLOOR = 1e-9
 
 # Presets: normalised control points (position in [0, 1] of the value range,
 # r, g, b, a). Colour-map presets take their colours from matplotlib and get an
@@ -200,6 +202,10 @@ class TransferFunction:
         for c in range(4):
             # np.interp is right-continuous at repeated x, which gives clean steps.
             table[:, c] = np.interp(xs, vals, self.points[:, 1 + c])
+        # An entry an ulp beside a zero-opacity control point (linspace rounding)
+        # interpolates to ~1e-17 instead of 0: invisible, but it would make its entry
+        # non-empty and switch skipping off around that point.
+        table[table[:, 3] < _ALPHA_FLOOR, 3] = 0.0
         return table
 
     # -- queries ----------------------------------------------------------

@@ -77,3 +77,30 @@ def test_warning_for_transparent_tf(monkeypatch, capsys, tmp_path, small_volume_
                            "--size", "8x8", "-o", str(tmp_path / "c.png"))
     assert code == 0
     assert "zero opacity" in err
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--index", "grid-pc:cel=8"], ["unknown option 'cel'", "grid-pc takes options: cell", "did you mean 'cell'"]),
+    (["--cell", "7"], ["'auto'", "need a named index", "cell (--cell) applies to: grid-mm, grid-pc"]),
+    (["--index", "naive", "--cell", "7"], ["'naive'", "unknown option 'cell'", "applies to: grid-mm, grid-pc"]),
+    (["--index", "lbvh", "--cell", "8"], ["lbvh takes options: brick, prune, voting", "applies to: grid-mm"]),
+    (["--index", "grid-pc:dt=0.5"], ["'dt' is a render parameter", "--dt"]),
+    (["--index", "grid-mm:width=9"], ["'width' is a render parameter", "--size"]),
+    (["--index", "naive:background=white"], ["--background"]),
+])
+def test_bad_index_options_are_one_line(monkeypatch, capsys, tmp_path, args, expected):
+    out = tmp_path / "x.png"
+    code, _, err = run_cli(monkeypatch, capsys, "render", "--size", "8x8", "-o", str(out), *args)
+    assert code == 2, err
+    assert "Traceback" not in err and "TypeError" not in err and "__init__" not in err
+    flat = " ".join(err.split())  # rich wraps long lines
+    for text in expected:
+        assert text in flat, (text, err)
+    assert not out.exists()
+
+
+def test_info_indices_lists_options(monkeypatch, capsys):
+    code, out, _ = run_cli(monkeypatch, capsys, "info", "--indices")
+    assert code == 0
+    lines = {line.split()[0]: line for line in out.splitlines()[1:] if line.strip()}
+    assert "cell" in lines["grid-pc"] and "no options" in lines["naive"] and "prune" in lines["lbvh"]

@@ -199,3 +199,49 @@ def _load_cached(path):
     if path not in _CACHE:
         _CACHE[path] = sc.load_volume(path)
     return _CACHE[path]
+
+
+# -- issue 15, item 1: zero opacity exactly on data values ---------------------------
+_LEVELS = [0.0, 0.125, 0.25, 0.5, 1.0]
+
+
+@st.composite
+def constant_brick_scenes(draw):
+    """Boxes of constant value (most of the volume exactly 0) and a TF whose control
+    points, zero-opacity ones among them, sit exactly on those values."""
+    shape = tuple(draw(st.integers(2, 30)) for _ in range(3))
+    data = np.zeros(shape, np.float32)
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    for _ in range(draw(st.integers(0, 4))):
+        lo = [int(rng.integers(0, n)) for n in shape]
+        hi = [a + int(rng.integers(1, 12)) for a in lo]
+        data[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = draw(st.sampled_from(_LEVELS))
+    vol = sc.Volume(data, spacing=(1.0, 0.9, 1.2))
+    xs = sorted(draw(st.lists(st.sampled_from(_LEVELS), min_size=2, max_size=4)))
+    pts = [(x, 0.9, 0.6, 0.3, draw(st.sampled_from([0.0, 0.0, 0.4, 1.0]))) for x in xs]
+    pts.insert(0, (0.0, 0.9, 0.6, 0.3, 0.0))  # zero at the data minimum, like the viewer's editor
+    tf = sc.TransferFunction(pts, (0.0, draw(st.sampled_from([1.0, 2.0]))),
+                             table_size=draw(st.sampled_from([256, 1024])))
+    cam = sc.Camera.orbit(vol, draw(st.sampled_from([0.0, 30.0, 145.0])), draw(st.sampled_from([0.0, 25.0, -60.0])),
+                          projection=draw(st.sampled_from(["orthographic", "perspective"])))
+    return vol, tf, cam
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@settings(max_examples=10, deadline=None)
+@given(data=constant_brick_scenes())
+def test_property_constant_bricks_equal_naive(name, opts, data):
+    vol, tf, cam = data
+    assert_same_as_naive(vol, tf, cam, 12, 10, name, opts, dt=0.5, ert=1.0)
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_ramp_from_zero_skips_the_zero_background(name, opts):
+    """A TF that is 0 at the data minimum and ramps up from there: the all-zero
+    background is empty space (it was classified non-empty, one entry too wide)."""
+    rng = np.random.default_rng(21)
+    vol = sparse_volume(rng, (48, 40, 56), 3)
+    tf = sc.TransferFunction([(0.0, 1, 1, 1, 0.0), (1.0, 1, 0.5, 0.2, 0.8)], (0.0, 1.0))
+    cam = sc.Camera.orbit(vol, 35, 25)
+    img, ref = assert_same_as_naive(vol, tf, cam, 32, 32, name, opts, ert=1.0)
+    assert img.stats["samples"] < ref.stats["samples"], f"{name} {opts} skipped nothing"

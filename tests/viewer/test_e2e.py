@@ -86,9 +86,9 @@ def test_page_renders_and_tf_drag_changes_frame(driver, server, tmp_path):
     driver.get(server.url)
     wait_for(driver, f"return {IDLE};", 90, "the first full frame")
     hello = driver.execute_script("return window.sparsecastViewer.hello;")
-    assert hello["indices"] == sc.available_indices()
+    assert hello["indices"] == ["auto", *sc.available_indices()]
     options = [o.get_attribute("value") for o in driver.find_elements(By.CSS_SELECTOR, "#index option")]
-    assert options == sc.available_indices()
+    assert options == hello["indices"]
     status = driver.find_element(By.ID, "status").text
     assert "frame" in status and "rebuild" in status and "samples" in status
     before = driver.execute_script(CANVAS)

@@ -71,11 +71,11 @@ def test_page_and_static_files(client):
     r = client.get("/")
     assert r.status_code == 200 and "viewer.js" in r.text
     assert "Content-Security-Policy" in r.headers
-    for name, ctype in [("viewer.js", "javascript"), ("viewer.css", "css"), ("index.html", "html")]:
+    for name, ctype in [("viewer.js", "javascript"), ("interaction.js", "javascript"), ("viewer.css", "css"), ("index.html", "html")]:
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and ctype in r.headers["content-type"]
     # The page makes no external requests: no absolute URLs in what it loads.
-    for name in ("index.html", "viewer.js", "viewer.css"):
+    for name in ("index.html", "interaction.js", "viewer.js", "viewer.css"):
         text = client.get(f"/static/{name}").text
         assert "http://" not in text and "https://" not in text and "//cdn" not in text
 
@@ -124,7 +124,7 @@ def test_hello_frames_tf_change_and_index_cache(client, data):
     with client.websocket_connect("/ws") as ws:
         hello = ws.receive_json()
         assert hello["type"] == "hello"
-        assert hello["indices"] == sc.available_indices()
+        assert hello["indices"] == ["auto", *sc.available_indices()]
         counts = hello["histogram"]["counts"]
         assert len(counts) == 128 and sum(counts) > 0
         assert hello["histogram"]["range"] == list(data.volume.value_range)
@@ -329,3 +329,24 @@ def test_session_caches_stay_bounded_over_many_tf_edits(data):
     assert grown < 400 * 1024, f"{grown} bytes kept by 1200 more TF edits"  # unbounded: ~740 kB
     s.close()
     assert not s._naive_ms and not s._indices and not s._tfs
+
+
+def test_auto_index_cheap_while_the_tf_is_dragged(data):
+    """The viewer's default is auto: a preview frame with a new TF (a point being
+    dragged) gets the rebuild-cheap index, the full frame after it the fast one."""
+    from sparsecast.index.auto import EDITING_INDEX, SPARSE_INDEX
+
+    s = Session(data)
+    assert s.index.name == "auto"
+    _, st = s.render_frame(s.update(RenderRequest(seq=1, width=40, height=30)))
+    assert st["index"] == SPARSE_INDEX and st["auto"]["reason"]
+    pts = list(data.tf.points)
+    pts[-1] = (*pts[-1][:4], 0.5)
+    dragged = TFSpec(tuple(pts), data.tf.colormap, data.tf.value_range)
+    _, st = s.render_frame(s.update(RenderRequest(seq=2, tf=dragged, preview=True)))
+    assert st["index"] == EDITING_INDEX and st["auto"]["editing"]
+    _, st = s.render_frame(s.update(RenderRequest(seq=3, preview=False)))
+    assert st["index"] == SPARSE_INDEX
+    # an orbit preview with the settled TF keeps the fast index
+    _, st = s.render_frame(s.update(RenderRequest(seq=4, preview=True)))
+    assert st["index"] == SPARSE_INDEX and not st["auto"]["editing"]

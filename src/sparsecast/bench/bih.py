@@ -81,7 +81,7 @@ def _volume_tables(name, vol, make_tf, width, height, repeat, warmup, record) ->
     view = f"az{VIEW[0]:g}_el{VIEW[1]:g}"
     common = dict(dataset=name, width=width, height=height, view=view)
 
-    naive_ms, naive_wall, ref = _frame(lambda: render(vol, tf, cam, width, height), repeat, warmup)
+    naive_ms, naive_wall, ref = _frame(lambda: render(vol, tf, cam, width, height, index="naive"), repeat, warmup)
     record(method="naive", phase="render", ms=naive_ms, wall_ms=naive_wall, samples=ref.stats["samples"],
            **common)
     ref_rgba = ref.rgba

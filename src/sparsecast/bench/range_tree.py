@@ -312,8 +312,8 @@ def classify_irt(tree: RangeMaxTree, tf, vmin, vmax) -> np.ndarray:
 
     Data values map to table entries with the same
     :func:`sparsecast.kernels.classify.entry_span` that ``tf.classify`` (and
-    ``tf._entry_span``) use: floor/ceil of the clipped table position widened by
-    the 1e-3 entry margin. A region is non-empty iff the maximum opacity over
+    ``tf._entry_span``) use: floor/ceil of the clipped table positions of the
+    range widened by ``SPAN_MARGIN`` of its span. A region is non-empty iff the maximum opacity over
     those entries is > 0, so for ``vmin <= vmax`` the answer equals
     ``tf.classify(vmin, vmax)`` element for element.
 

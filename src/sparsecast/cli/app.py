@@ -15,11 +15,12 @@ from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
+from rich.text import Text
 
 from ..errors import SparsecastError
 
 __all__ = [
-    "app", "main", "out", "err",
+    "app", "main", "out", "err", "warn", "error", "plain_console",
     "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
     "AllowOutsideOpt",
     "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt",
@@ -31,9 +32,27 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Fast ray casting of sparse volumes.",
 )
-#: Results go to stdout, warnings, progress and errors to stderr.
-out = Console(soft_wrap=True)
-err = Console(stderr=True, soft_wrap=True)
+#: Results go to stdout, warnings, progress and errors to stderr. Markup and
+#: highlighting are off: messages carry file names, presets and option values as the
+#: user wrote them, and rich would swallow ``[v2]`` in ``scan[v2].nrrd`` as a tag.
+#: Styling goes through :class:`rich.text.Text` (see :func:`warn`, :func:`error`).
+out = Console(soft_wrap=True, markup=False, highlight=False)
+err = Console(stderr=True, soft_wrap=True, markup=False, highlight=False)
+
+
+def plain_console(width: int) -> Console:
+    """A stdout console of a fixed width that prints text as written (tables in logs)."""
+    return Console(soft_wrap=True, width=width, markup=False, highlight=False)
+
+
+def warn(message: str) -> None:
+    """``warning: MESSAGE`` on stderr, the message verbatim."""
+    err.print(Text.assemble(("warning:", "yellow"), " ", message))
+
+
+def error(message: str) -> None:
+    """``error: MESSAGE`` on stderr, the message verbatim."""
+    err.print(Text.assemble(("error:", "red"), " ", message))
 
 # Options shared by the commands that load and classify a volume (render, info, view).
 FileArg = Annotated[
@@ -67,10 +86,10 @@ def main() -> None:
     try:
         app()
     except SparsecastError as exc:
-        err.print(f"[red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        error(str(exc))
         sys.exit(2)
     except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        err.print(f"[red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        error(str(exc))
         sys.exit(2)
     except KeyboardInterrupt:
         err.print("interrupted")

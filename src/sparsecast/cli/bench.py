@@ -9,11 +9,10 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
-from rich.console import Console
 
 from .._util.checks import as_int, fail
 from ..errors import ParameterError
-from .app import app, err, out
+from .app import app, err, out, plain_console
 from .parse import none_list, parse_index_spec, parse_size
 
 __all__ = ["bench"]
@@ -97,7 +96,7 @@ def bench(
     finally:
         progress.close()
     # A table this wide is unreadable folded at 80 columns when piped to a file.
-    wide = out if out.is_terminal else Console(soft_wrap=True, width=200)
+    wide = out if out.is_terminal else plain_console(200)
     # A suite run has hundreds of records: its console shows the headline, the report the rest.
     wide.print(format_summary(records) if suite else format_table(records))
     write_json(records, json_path)
@@ -146,5 +145,5 @@ def _compare(old: Path, new: Path) -> None:
     cases, only_old, only_new = compare_records(load_records(old), load_records(new))
     if not cases:
         raise ParameterError(f"--compare: {old} and {new} have no case in common; expected two runs of the same suite")
-    wide = out if out.is_terminal else Console(soft_wrap=True, width=160)
+    wide = out if out.is_terminal else plain_console(160)
     wide.print(format_comparison(cases, only_old, only_new))

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import numpy as np
 import typer
+from rich.text import Text
 
 from .app import AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out
 from .inputs import load_input, make_tf
@@ -36,7 +37,14 @@ def info(
         out.print("TF presets: " + ", ".join(PRESETS))
         return
     if indices:
+        from ..index import index_options
+
         out.print("indices: " + ", ".join(available_indices()))
+        # What --index NAME:KEY=VALUE accepts (--cell is cell=).
+        for name in available_indices():
+            opts = index_options(name)
+            listed = "any keyword" if opts is None else (", ".join(opts) or "no options")
+            out.print(f"  {name:<15} {listed}")
         return
     vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
@@ -46,7 +54,7 @@ def info(
     nonempty = tfn.classify(bricks.vmin, bricks.vmax)
     classify_ms = (time.perf_counter() - t0) * 1e3
     nx, ny, nz = vol.dims
-    out.print(f"[bold]{vol.name}[/]  {file if file else '(built-in demo)'}")
+    out.print(Text.assemble((vol.name, "bold"), "  ", str(file) if file else "(built-in demo)"))
     out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.nbytes / 2**20:.1f} MiB, dtype {vol.dtype})")
     out.print(f"  spacing   {tuple(round(float(s), 6) for s in vol.spacing)}   origin {tuple(round(float(o), 6) for o in vol.origin)}")
     out.print(f"  range     [{lo:g}, {hi:g}]")

@@ -12,8 +12,9 @@ from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
 from .app import (
     AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
-    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, err, out,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, out, warn,
 )
+from ..index.registry import check_index_options
 from .inputs import load_input, make_tf
 from .parse import parse_background, parse_index_spec, parse_size
 
@@ -32,7 +33,7 @@ def render(
     zoom: ZoomOpt = 1.0,
     size: SizeOpt = "512x512",
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
-    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8.")] = "naive",
+    index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8; auto picks one from the volume's occupancy under the TF.")] = "auto",
     cell: CellOpt = None,
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
@@ -54,24 +55,27 @@ def render(
     check_output(output, "-o", IMAGE_SUFFIXES)
     if array is not None:
         check_output(array, "--array", {".npy"})
+    # Index options are checked before any work: a typo costs no volume load.
+    index_name, index_options = parse_index_spec(index)
+    if cell is not None:
+        index_options["cell"] = cell
+        check_index_options(index_name, index_options)
     t0 = time.perf_counter()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
-        err.print(f"[yellow]warning:[/] transfer function {tf!r} has zero opacity everywhere; the image is background only")
+        warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
     cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     bg = parse_background(background)
-    index_name, index_options = parse_index_spec(index)
-    if cell is not None:
-        index_options["cell"] = cell
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
                     background=bg, **index_options)
     img.save(output)
     if array is not None:
         img.save(array)
     s = img.stats
+    chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
-        f"index {s['index']}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
         f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
     )

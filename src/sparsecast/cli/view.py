@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.checks import as_int
-from .app import CellOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, err, out
+from .app import CellOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, err, out, warn
 from .inputs import load_input, make_tf
 
 __all__ = ["view"]
@@ -19,7 +19,7 @@ def view(
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
     threshold: ThresholdOpt = 0.1,
-    index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default grid-pc).")] = None,
+    index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default auto: chosen per frame from the occupancy, rebuild-cheap while a TF point is dragged).")] = None,
     cell: CellOpt = None,
     host: Annotated[str, typer.Option(help="Address to bind; anything but loopback needs --allow-remote.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port (0 picks a free one).")] = 8765,
@@ -48,7 +48,7 @@ def view(
     with err.status("preparing the index and kernels"):
         data.warm_up()
     if remote:
-        err.print(f"[yellow]warning:[/] serving on {host}, reachable from other machines; the viewer has no authentication")
+        warn(f"serving on {host}, reachable from other machines; the viewer has no authentication")
     out.print(f"sparsecast viewer: {server.url}  ({vol.name} {'x'.join(map(str, vol.dims))}; Ctrl-C stops)")
     if not no_browser:
         import threading

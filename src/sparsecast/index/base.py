@@ -53,6 +53,8 @@ class SpatialIndex:
         self.tf = tf
         self.build_phases: dict[str, float] = {}
         self.nbytes: int = 0
+        #: set by build_index(name="auto"): occupancy, editing, reason of the choice
+        self.auto: dict | None = None
 
     def traversal_record(self, view: View) -> tuple:
         """The record the driver traverses for one frame seen from ``view``.

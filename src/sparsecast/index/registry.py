@@ -1,7 +1,14 @@
-"""Name -> index class registry behind ``build_index`` and ``available_indices``."""
+"""Name -> index class registry behind ``build_index`` and ``available_indices``.
+
+Build options are checked here, against the index class's ``__init__`` signature, so
+that a misspelt option is one line naming the options the index takes, not a
+``TypeError`` from inside the class.
+"""
 
 from __future__ import annotations
 
+import difflib
+import inspect
 import time
 from typing import Any
 
@@ -11,6 +18,8 @@ from ..kernels.parallel import parallel_section
 from .base import SpatialIndex
 
 _INDICES: dict[str, type[SpatialIndex]] = {}
+#: the name that lets build_index / render choose (sparsecast.index.auto)
+AUTO = "auto"
 
 
 def register_index(cls: type[SpatialIndex]) -> type[SpatialIndex]:
@@ -26,6 +35,95 @@ def available_indices() -> list[str]:
     return sorted(_INDICES, key=lambda n: (n != "naive", n))
 
 
+#: ``render()`` parameters, with the CLI option that sets each: an index build option
+#: of the same name could never reach the index (``render(index=..., **options)``).
+#: tests/index/test_options.py checks this against render()'s signature.
+RENDER_PARAMETERS: dict[str, str] = {
+    "volume": "the FILE argument", "tf": "--tf", "camera": "--azimuth/--elevation/--projection/--zoom",
+    "width": "--size", "height": "--size", "dt": "--dt", "index": "--index", "ert": "--ert",
+    "shading": "--shade", "background": "--background", "clip_box": "render(clip_box=...)",
+    "clip_open": "render(clip_open=...)", "clip_planes": "render(clip_planes=...)",
+    "initial": "render(initial=...)", "rect": "render(rect=...)", "max_samples": "render(max_samples=...)",
+}
+
+
+def index_options(name: str) -> tuple[str, ...] | None:
+    """Build options the named index takes (keyword parameters of its class).
+
+    Follows ``**options`` pass-through to base classes (the hybrids take the k-d
+    tree's options). ``None`` when the class accepts arbitrary keywords.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`available_indices`.
+    """
+    cls = _index_class(name)
+    found: list[str] = []
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        open_ended = False
+        for i, p in enumerate(inspect.signature(init).parameters.values()):
+            if i < 3 and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+                continue  # self, volume, tf
+            if p.kind is p.VAR_KEYWORD:
+                open_ended = True
+            elif p.kind is not p.VAR_POSITIONAL and p.name not in found:
+                found.append(p.name)
+        if not open_ended:
+            return tuple(found)
+    return None
+
+
+def indices_taking(option: str) -> list[str]:
+    """Names of the indices whose build options include ``option`` (e.g. ``"cell"``)."""
+    return [n for n in available_indices() if option in (index_options(n) or ())]
+
+
+def check_index_options(name: str, options: dict[str, Any]) -> None:
+    """Raise :class:`ParameterError` for a build option ``name`` does not take.
+
+    The message names the option, the options the index takes (and a close match),
+    and for ``cell`` the indices that take it; a ``render()`` parameter names the
+    option that sets it instead.
+    """
+    if name == AUTO and options:
+        msg = (f"index 'auto': build options ({', '.join(options)}) need a named index; "
+               f"choose one with --index NAME:KEY=VALUE (indices: {', '.join(available_indices())})")
+        if "cell" in options:
+            msg += f"; cell (--cell) applies to: {', '.join(indices_taking('cell'))}"
+        raise ParameterError(msg)
+    for key in options:
+        if key in RENDER_PARAMETERS:
+            raise ParameterError(
+                f"index {name!r}: {key!r} is a render parameter, not a build option of the index; "
+                f"set it with {RENDER_PARAMETERS[key]}"
+            )
+    accepted = () if name == AUTO else index_options(name)
+    if accepted is None:
+        return
+    for key in options:
+        if key in accepted:
+            continue
+        takes = f"options: {', '.join(accepted)}" if accepted else "no build options"
+        msg = f"index {name!r}: unknown option {key!r}; {name} takes {takes}"
+        near = difflib.get_close_matches(key, accepted, n=1)
+        if near:
+            msg += f" (did you mean {near[0]!r}?)"
+        if key == "cell":
+            msg += f"; cell (--cell) applies to: {', '.join(indices_taking('cell'))}"
+        raise ParameterError(msg)
+
+
+def _index_class(name: str) -> type[SpatialIndex]:
+    cls = _INDICES.get(name)
+    if cls is None:
+        raise ParameterError(f"index: unknown index {name!r}; expected one of: {', '.join(available_indices())}")
+    return cls
+
+
 def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     """Build the named index for ``volume`` classified by ``tf``.
 
@@ -34,23 +132,37 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     volume : Volume
     tf : TransferFunction
     name : str
-        One of :func:`available_indices`.
+        One of :func:`available_indices`, or ``"auto"``: chosen from the volume's
+        brick occupancy under ``tf`` (see :mod:`sparsecast.index.auto`); the choice
+        and its reason are kept in the index's ``auto`` attribute.
     **options
-        Passed to the index class (e.g. ``brick_size``).
+        Passed to the index class (e.g. ``cell=8``); :func:`index_options` lists
+        what each index takes.
+
+    Raises
+    ------
+    ParameterError
+        An unknown index, or an option it does not take.
     """
-    cls = _INDICES.get(name)
-    if cls is None:
-        raise ParameterError(f"index: unknown index {name!r}; expected one of: {', '.join(available_indices())}")
+    check_index_options(name, options)
+    auto = None
+    if name == AUTO:
+        from .auto import choose_index  # the chooser imports this module
+
+        name, auto = choose_index(volume, tf)
+    cls = _index_class(name)
     t0 = time.perf_counter()
     try:
         with parallel_section():  # build kernels use prange (see kernels.parallel)
             idx = cls(volume, tf, **options)
-    except TypeError as exc:
+    except TypeError as exc:  # an index that takes **options and forwards them elsewhere
         if "unexpected keyword" not in str(exc):
             raise
         raise ParameterError(f"index {name!r}: {exc}") from None
     if not idx.build_phases:
         idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
+    if auto is not None:
+        idx.auto = auto  # why "auto" chose it: render() reports it in stats["auto"]
     return idx
 
 
@@ -76,7 +188,8 @@ def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
     Raises
     ------
     ParameterError
-        An option without ``=``, or an unknown index name.
+        An option without ``=``, an unknown index name, or an option the index
+        does not take (see :func:`check_index_options`).
     """
     name, _, opts = spec.partition(":")
     options: dict[str, Any] = {}
@@ -95,6 +208,7 @@ def parse_index_spec(spec: str) -> tuple[str, dict[str, Any]]:
                 continue
         else:
             options[key] = value
-    if name not in available_indices():
+    if name not in available_indices() and name != AUTO:
         raise ParameterError(f"method {spec!r}: unknown index {name!r}; expected one of {', '.join(available_indices())}")
+    check_index_options(name, options)
     return name, options

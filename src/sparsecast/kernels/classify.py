@@ -10,23 +10,37 @@ import math
 
 from numba import njit, prange
 
-#: Widening of a queried range, in table entries. It keeps answers conservative
-#: when float rounding (trilinear interpolation in float, a lattice point an ulp
-#: outside its cell) puts a sample just outside its region's [min, max].
-MARGIN = 1e-3
+#: Widening of a queried range ``[lo, hi]`` on each side, as a fraction of its span
+#: ``hi - lo`` (value space, not table entries). Float rounding can put a trilinear
+#: sample just outside its region's [min, max]: a rounded difference of two voxel
+#: values, or a lattice point an ulp outside the volume box that extrapolates by an
+#: ulp (see ``kernels.sample._axis``). Every such error is a few ulps *of the span*
+#: (the lerp ``a + f * (b - a)`` overshoots only through ``f * (b - a)``); a
+#: constant region, all-zero bricks included, interpolates to its value exactly
+#: (``a + f * 0 == a``) and gets no widening at all. 1e-6 of the span covers
+#: coordinate errors up to 1e-6 cell, and stays below 0.005 table entries for any
+#: region inside the TF range, so it changes no answer that is not on a hair.
+SPAN_MARGIN = 1e-6
 
 
 @njit(cache=True, inline="always")
 def entry_span(v_lo, scale, n_entries, lo, hi):
     """Table entries ``first..last`` that a lookup of any value in ``[lo, hi]`` touches.
 
-    Lookups blend entries ``floor(x)`` and ``floor(x) + 1`` at ``x = (v - v_lo) * scale``
-    clamped to ``[0, n-1]``, so ``floor(x0)..ceil(x1)`` covers every entry with a
-    non-zero weight.
+    A lookup blends entries ``i = floor(x)`` and ``i + 1`` with weights ``1 - f`` and
+    ``f = x - i`` at ``x = (v - v_lo) * scale`` clamped to ``[0, n-1]`` (the last
+    entry is reached as ``i = n-2, f = 1``). An entry of weight 0 contributes
+    nothing, so values in ``[lo, hi]`` touch exactly ``floor(x0)..ceil(x1)``: a
+    range that ends on an entry (``x1`` integral, e.g. a TF that is zero at the data
+    minimum and ramps up from there) does not touch the next one. The range is
+    first widened by :data:`SPAN_MARGIN` of its span, for rounding of samples.
     """
     top = n_entries - 1.0
-    x0 = min(max((lo - v_lo) * scale - MARGIN, 0.0), top)
-    x1 = min(max((hi - v_lo) * scale + MARGIN, 0.0), top)
+    pad = SPAN_MARGIN * (hi - lo)
+    if not pad >= 0.0:  # lo == hi == +-inf: a NaN pad would turn every answer to NaN
+        pad = 0.0
+    x0 = min(max((lo - pad - v_lo) * scale, 0.0), top)
+    x1 = min(max((hi + pad - v_lo) * scale, 0.0), top)
     return int(math.floor(x0)), int(math.ceil(x1))
 
 

@@ -45,7 +45,7 @@ def render(
     height: int = 512,
     *,
     dt: float | None = None,
-    index: str | SpatialIndex = "naive",
+    index: str | SpatialIndex = "auto",
     ert: float = 0.99,
     shading: bool | Mapping[str, float] = False,
     background: str | Sequence[float] = "transparent",
@@ -72,9 +72,11 @@ def render(
     dt : float, optional
         World-space distance between samples. Default: half the smallest voxel spacing.
     index : str or SpatialIndex
-        An index name from :func:`available_indices` (built on the fly; its build
-        time appears in ``stats["build_ms"]``), or a prebuilt index for this volume
-        and TF, which is reused.
+        ``"auto"`` (default: chosen from the volume's brick occupancy under ``tf``,
+        see :mod:`sparsecast.index.auto`; the choice is ``stats["index"]`` and its
+        reason ``stats["auto"]``), an index name from :func:`available_indices`
+        (built on the fly; its build time appears in ``stats["build_ms"]``), or a
+        prebuilt index for this volume and TF, which is reused.
     ert : float
         Early ray termination once accumulated opacity reaches this, in (0, 1];
         1.0 turns it off.
@@ -216,6 +218,8 @@ def render(
         "ert": ert,
         "shading": bool(frame.shading[0]),
     }
+    if getattr(index, "auto", None) is not None:
+        stats["auto"] = dict(index.auto)
     return Image(rgba, stats, samples)
 
 

@@ -27,10 +27,9 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import ParameterError, SparsecastError
-from ..index import available_indices
 from ..transfer import PRESETS
 from .messages import MessageError, parse_message
-from .session import Session, Snapshot, ViewerData
+from .session import Session, Snapshot, ViewerData, viewer_indices
 
 __all__ = ["create_app", "check_host", "ViewerServer", "LOOPBACK_HOSTS", "IDLE_PROBE_S"]
 
@@ -78,7 +77,7 @@ def check_host(host: str, allow_remote: bool) -> bool:
 def _load_static() -> dict[str, tuple[bytes, str]]:
     files = {}
     root = resources.files("sparsecast.viewer") / "static"
-    for name in ("index.html", "viewer.js", "viewer.css"):
+    for name in ("index.html", "interaction.js", "viewer.js", "viewer.css"):
         suffix = name[name.rfind("."):]
         files[name] = ((root / name).read_bytes(), _CONTENT_TYPES[suffix])
     return files
@@ -148,7 +147,7 @@ def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: t
         send_lock = asyncio.Lock()
         pending: list[Snapshot | None] = [None]
         wake = asyncio.Event()
-        indices = available_indices()
+        indices = viewer_indices()
 
         async def send_json(obj: dict) -> None:
             async with send_lock:

@@ -31,6 +31,8 @@ import numpy as np
 from ..camera import Camera
 from ..errors import SparsecastError
 from ..index import available_indices, build_index
+from ..index.auto import choose_index
+from ..index.registry import AUTO
 from ..render import render
 from ..transfer import PRESETS, TransferFunction
 from ..volume import Volume
@@ -105,13 +107,18 @@ def tf_from_spec(spec: TFSpec) -> TransferFunction:
     return TransferFunction(pts, (lo, hi), name=spec.colormap or "custom")
 
 
+def viewer_indices() -> list[str]:
+    """Index names the viewer offers: ``auto`` (chosen per frame), then every index."""
+    return [AUTO, *available_indices()]
+
+
 @dataclass
 class ViewerData:
     """What every client of one server shares."""
 
     volume: Volume
     tf: TFSpec
-    index: IndexSpec = field(default_factory=lambda: IndexSpec("grid-pc" if "grid-pc" in available_indices() else "naive"))
+    index: IndexSpec = field(default_factory=lambda: IndexSpec(AUTO))
     camera: CameraSpec = field(default_factory=CameraSpec)
     dt: float | None = None
 
@@ -133,10 +140,10 @@ class ViewerData:
         spec = spec_from_preset(tf, volume.value_range) if isinstance(tf, str) else spec_from_tf(tf)
         extra = {}
         if index is not None:
-            if index not in available_indices():
+            if index not in viewer_indices():
                 from ..errors import ParameterError
 
-                raise ParameterError(f"index: unknown index {index!r}; expected one of: {', '.join(available_indices())}")
+                raise ParameterError(f"index: unknown index {index!r}; expected one of: {', '.join(viewer_indices())}")
             if cell is not None and cell not in CELL_SIZES:
                 from ..errors import ParameterError
 
@@ -160,7 +167,7 @@ class ViewerData:
             "volume": {"name": v.name, "dims": list(v.dims), "dtype": str(v.dtype),
                        "value_range": list(self.histogram_range)},
             "histogram": {"counts": self.histogram.tolist(), "range": list(self.histogram_range)},
-            "indices": available_indices(),
+            "indices": viewer_indices(),
             "presets": list(PRESETS),
             # Colours of each preset at 32 evenly spaced positions (for the editor's strip).
             "colormaps": {p: colormap_samples(p) for p in PRESETS},
@@ -205,6 +212,9 @@ class Session:
         self._indices: OrderedDict[tuple, Any] = OrderedDict()
         self._naive_ms: OrderedDict[tuple, float] = OrderedDict()
         self.frames = 0
+        # TF of the last full (not preview) frame: a preview with another TF means a
+        # TF point is being dragged, and "auto" then picks a rebuild-cheap index.
+        self._settled_tf: TFSpec | None = None
 
     def update(self, req: RenderRequest) -> Snapshot:
         if req.camera is not None:
@@ -258,11 +268,18 @@ class Session:
         """Render ``s``; return the encoded image and the status message."""
         t_all = time.perf_counter()
         tf = self._tf(s.tf)
-        idx, build_ms, rebuilt = self._index(s.tf, tf, s.index)
+        ispec, auto = s.index, None
+        if ispec.name == AUTO:
+            editing = s.preview and s.tf != self._settled_tf
+            name, auto = choose_index(self.data.volume, tf, editing=editing)
+            ispec = IndexSpec(name, None)
+        if not s.preview:
+            self._settled_tf = s.tf
+        idx, build_ms, rebuilt = self._index(s.tf, tf, ispec)
         img = render(self.data.volume, tf, self._camera(s.camera), s.width, s.height,
                      dt=self.data.dt, index=idx, background="black")
         st = img.stats
-        if s.index.name == "naive":
+        if ispec.name == "naive":
             self._remember_naive(self._view_key(s), st["ms"])
         t_enc = time.perf_counter()
         payload = encode(img.rgba, s.format)
@@ -277,7 +294,8 @@ class Session:
             "preview": s.preview,
             "format": s.format,
             "bytes": len(payload),
-            "index": s.index.name,
+            "index": ispec.name,
+            "auto": auto,
             "cell": getattr(idx, "cell", None),
             "rebuilt": rebuilt,
             "rebuild_ms": round(build_ms, 3),
@@ -289,7 +307,7 @@ class Session:
             "samples_nonempty": int(st["samples_nonempty"]),
             "naive_ms": None if naive_ms is None else round(naive_ms, 3),
             "speedup": None if naive_ms is None or st["ms"] <= 0 else round(naive_ms / st["ms"], 2),
-            "speedup_source": None if naive_ms is None else ("measured" if s.index.name == "naive" else "estimated"),
+            "speedup_source": None if naive_ms is None else ("measured" if ispec.name == "naive" else "estimated"),
         }
         self.last_frame_ms = st["ms"]
         return payload, status

@@ -2,6 +2,7 @@
 "use strict";
 (function () {
   const $ = (id) => document.getElementById(id);
+  const ui = window.sparsecastInteraction;  // interaction.js: drag -> camera / opacity
   const view = $("view"), vctx = view.getContext("2d");
   const tfc = $("tf"), tctx = tfc.getContext("2d");
   const strip = $("tf-strip"), sctx = strip.getContext("2d");
@@ -64,7 +65,7 @@
     const sp = s.speedup == null ? "speedup: measuring when idle" :
       `speedup ${s.speedup.toFixed(1)}x over naive (${f1(s.naive_ms)} ms ${s.speedup_source})`;
     $("status").textContent =
-      `${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
+      `${s.auto ? "auto: " : ""}${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
       `rebuild ${s.rebuilt ? f1(s.rebuild_ms) + " ms" : "cached"} | frame ${f1(s.frame_ms)} ms | ` +
       `${(s.samples / 1e6).toFixed(2)} M samples | ${sp}`;
   }
@@ -144,8 +145,9 @@
       const clamp = (v) => Math.max(-5, Math.min(5, v));
       st.camera.pan = [clamp(drag.px - (e.clientX - drag.x) * k), clamp(drag.py + (e.clientY - drag.y) * k)];
     } else {
-      st.camera.azimuth = (((drag.az - (e.clientX - drag.x) * 0.4) % 360) + 360) % 360;
-      st.camera.elevation = Math.max(-89.9, Math.min(89.9, drag.el + (e.clientY - drag.y) * 0.4));
+      const ang = ui.orbitDrag(drag.az, drag.el, e.clientX - drag.x, e.clientY - drag.y);
+      st.camera.azimuth = ang.azimuth;
+      st.camera.elevation = ang.elevation;
     }
     syncInputs();
     request(true);
@@ -176,7 +178,7 @@
   const toPx = (p) => [PAD + p[0] * (tfc.width - 2 * PAD), tfc.height - PAD - p[4] * (tfc.height - 2 * PAD)];
   const fromPx = (x, y) => [
     Math.max(0, Math.min(1, (x - PAD) / (tfc.width - 2 * PAD))),
-    Math.max(0, Math.min(1, (tfc.height - PAD - y) / (tfc.height - 2 * PAD))),
+    ui.opacityAt(y, tfc.height, PAD),
   ];
 
   function interpColour(x) {
