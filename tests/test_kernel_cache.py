@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import sparsecast
 from sparsecast import kernel_cache
 
@@ -55,3 +57,26 @@ def test_off_keeps_numbas_default(tmp_path):
     out = _run("import sparsecast; from sparsecast import kernel_cache as k; print(k.cache_dir())",
                {"SPARSECAST_CACHE_DIR": "off"})
     assert out == "None"
+
+
+def test_index_naming_an_unimportable_type_is_a_cache_miss(tmp_path, monkeypatch):
+    """A cache index that pickles a type from a module this process cannot import
+    (the suite's test-bbox index) reads as empty instead of raising."""
+    import importlib
+
+    from numba.core.caching import IndexDataCacheFile
+
+    kernel_cache.configure()
+    mod_dir = tmp_path / "mods"
+    mod_dir.mkdir()
+    (mod_dir / "ghost_record_mod.py").write_text("class Ghost:\n    pass\n")
+    monkeypatch.syspath_prepend(str(mod_dir))
+    ghost = importlib.import_module("ghost_record_mod")
+    cache = IndexDataCacheFile(str(tmp_path / "cache"), "kernel-x", "stamp")
+    os.makedirs(tmp_path / "cache", exist_ok=True)
+    cache._save_index({("sig", ghost.Ghost): "data-0"})
+    assert cache._load_index() == {("sig", ghost.Ghost): "data-0"}
+    monkeypatch.delitem(sys.modules, "ghost_record_mod")
+    (mod_dir / "ghost_record_mod.py").unlink()
+    importlib.invalidate_caches()
+    assert cache._load_index() == {}

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import pickle
 import shutil
 import time
 from pathlib import Path
@@ -99,8 +100,36 @@ def configure() -> Path | None:
 
     config.CACHE_DIR = str(folder)
     os.environ["NUMBA_CACHE_DIR"] = str(folder)  # the same folder for subprocesses
+    _tolerate_foreign_indexes()
     _configured = folder
     return folder
+
+
+def _tolerate_foreign_indexes() -> None:
+    """Read a cache index that names types this process cannot import as empty.
+
+    A kernel's cache index pickles the signatures of every overload compiled into
+    it, so one compiled for a record type of a module that is not importable here
+    (the test suite's ``test-bbox`` index, a user's own index in a script) made
+    every later load of that kernel raise ``ModuleNotFoundError``. Treated as a
+    cache miss, the kernel compiles again and Numba writes a fresh index.
+    """
+    try:
+        from numba.core.caching import IndexDataCacheFile
+    except ImportError:  # another Numba layout: keep its behaviour
+        return
+    load = IndexDataCacheFile._load_index
+    if getattr(load, "_sparsecast_tolerant", False):
+        return
+
+    def _load_index(self):
+        try:
+            return load(self)
+        except (ImportError, AttributeError, EOFError, pickle.UnpicklingError):
+            return {}
+
+    _load_index._sparsecast_tolerant = True  # type: ignore[attr-defined]
+    IndexDataCacheFile._load_index = _load_index
 
 
 def cache_dir() -> Path | None:
