@@ -45,11 +45,11 @@ def test_clip_box_equals_naive(scene, name, shade):
     opened = ((True, False, False), (False, True, True))
     cam = sc.Camera.orbit(vol, 40, 25)
     kw = dict(dt=0.5, clip_box=box, clip_open=opened, shading=shade, ert=1.0)
-    ref = sc.render(vol, tf, cam, 28, 24, **kw)
+    ref = sc.render(vol, tf, cam, 28, 24, index="naive", **kw)
     img = sc.render(vol, tf, cam, 28, 24, index=name, **kw)
     assert np.abs(img.rgba - ref.rgba).max() <= ATOL
     assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
-    full = sc.render(vol, tf, cam, 28, 24, dt=0.5, shading=shade, ert=1.0)
+    full = sc.render(vol, tf, cam, 28, 24, index="naive", dt=0.5, shading=shade, ert=1.0)
     assert ref.stats["samples"] < full.stats["samples"]  # the clip removes samples
 
 
@@ -104,7 +104,7 @@ def test_clip_planes_equal_naive(scene, name):
     vol, tf = scene
     cam = sc.Camera.orbit(vol, -35, 30)
     kw = dict(dt=0.5, clip_planes=PLANES, ert=1.0, shading=True)
-    ref = sc.render(vol, tf, cam, 26, 22, **kw)
+    ref = sc.render(vol, tf, cam, 26, 22, index="naive", **kw)
     img = sc.render(vol, tf, cam, 26, 22, index=name, **kw)
     assert np.abs(img.rgba - ref.rgba).max() <= ATOL
     assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
@@ -117,9 +117,9 @@ def test_clip_plane_is_a_half_box(scene):
     lo, hi = vol.bounds
     cut = 12.3
     cam = sc.Camera.orbit(vol, 25, 15)
-    whole = sc.render(vol, tf, cam, 30, 24, dt=0.5)
-    plane = sc.render(vol, tf, cam, 30, 24, dt=0.5, clip_planes=[((cut, 0, 0), (2.0, 0, 0))])
-    box = sc.render(vol, tf, cam, 30, 24, dt=0.5, clip_box=((cut, lo[1], lo[2]), tuple(hi)))
+    whole = sc.render(vol, tf, cam, 30, 24, dt=0.5, index="naive")
+    plane = sc.render(vol, tf, cam, 30, 24, dt=0.5, index="naive", clip_planes=[((cut, 0, 0), (2.0, 0, 0))])
+    box = sc.render(vol, tf, cam, 30, 24, dt=0.5, index="naive", clip_box=((cut, lo[1], lo[2]), tuple(hi)))
     assert np.abs(plane.rgba - box.rgba).max() <= ATOL
     assert abs(plane.stats["samples"] - box.stats["samples"]) <= 2  # rounding at the plane itself
     assert plane.stats["samples"] < whole.stats["samples"]

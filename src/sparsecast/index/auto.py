@@ -20,7 +20,8 @@ from __future__ import annotations
 from typing import Any
 
 from .._util.checks import as_float
-from .registry import AUTO, available_indices
+#: the name that lets build_index / render choose
+AUTO = "auto"
 
 __all__ = ["AUTO", "choose_index", "DENSE_OCCUPANCY", "EDITING_INDEX", "SPARSE_INDEX"]
 
@@ -34,8 +35,8 @@ SPARSE_INDEX = "kdtree-deep"
 BRICK = 8
 
 
-def choose_index(volume, tf, *, editing: bool = False,
-                 dense_occupancy: float = DENSE_OCCUPANCY) -> tuple[str, dict[str, Any]]:
+def choose_index(volume, tf, *, editing: bool = False, dense_occupancy: float = DENSE_OCCUPANCY,
+                 names: list[str] | None = None) -> tuple[str, dict[str, Any]]:
     """The index ``index="auto"`` renders ``volume`` with, and why.
 
     Parameters
@@ -47,6 +48,9 @@ def choose_index(volume, tf, *, editing: bool = False,
         the index that rebuilds fastest.
     dense_occupancy : float
         Non-empty brick fraction from which ``naive`` is chosen.
+    names : list of str, optional
+        The registered indices to choose from (``build_index`` passes them; default:
+        naive and the two indices named above).
 
     Returns
     -------
@@ -57,7 +61,8 @@ def choose_index(volume, tf, *, editing: bool = False,
     dense_occupancy = as_float(dense_occupancy, "dense_occupancy", lo=0.0, hi=1.0)
     bricks = volume.brick_stats(BRICK)
     occupancy = float(tf.classify(bricks.vmin, bricks.vmax).mean())
-    names = available_indices()
+    if names is None:  # the registry (which imports this module) passes its names; others get the default pair
+        names = ["naive", EDITING_INDEX, SPARSE_INDEX]
     if occupancy >= dense_occupancy:
         name, reason = "naive", f"{100 * occupancy:.1f} % of bricks non-empty: nothing to skip"
     elif editing and EDITING_INDEX in names:

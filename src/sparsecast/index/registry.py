@@ -15,11 +15,10 @@ from typing import Any
 from .._util.checks import fail
 from ..errors import ParameterError
 from ..kernels.parallel import parallel_section
+from .auto import AUTO, choose_index
 from .base import SpatialIndex
 
 _INDICES: dict[str, type[SpatialIndex]] = {}
-#: the name that lets build_index / render choose (sparsecast.index.auto)
-AUTO = "auto"
 
 
 def register_index(cls: type[SpatialIndex]) -> type[SpatialIndex]:
@@ -147,9 +146,7 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     check_index_options(name, options)
     auto = None
     if name == AUTO:
-        from .auto import choose_index  # the chooser imports this module
-
-        name, auto = choose_index(volume, tf)
+        name, auto = choose_index(volume, tf, names=available_indices())
     cls = _index_class(name)
     t0 = time.perf_counter()
     try:

@@ -271,7 +271,7 @@ class Session:
         ispec, auto = s.index, None
         if ispec.name == AUTO:
             editing = s.preview and s.tf != self._settled_tf
-            name, auto = choose_index(self.data.volume, tf, editing=editing)
+            name, auto = choose_index(self.data.volume, tf, editing=editing, names=available_indices())
             ispec = IndexSpec(name, None)
         if not s.preview:
             self._settled_tf = s.tf
