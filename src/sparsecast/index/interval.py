@@ -22,11 +22,13 @@ processes; a closure factory would recompile in every new process):
     or extend past ``[t_lo, t_hi]``; the driver merges touching ones and
     clamps lattice indices to the clip.
 ``integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,``
-``ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a)``
-    Composite one interval ``[t0, t1]`` onto the premultiplied ``(r, g, b, a)``
-    and return ``(r, g, b, a, k_next, n_samples, n_nonempty)``. Arguments are
-    plain arrays and scalars (no records beyond the index's own): passing
-    records of arrays to a call costs reference-count atomics per interval. The default, for every record whose class does not
+``ray, wdir, t0, t1, k_next, k_max, acc)``
+    Composite one interval ``[t0, t1]`` onto the premultiplied ``acc = (r, g, b, a)``
+    and return ``(r, g, b, a, k_next, n_samples, n_nonempty)``; ``wdir`` is the unit
+    world direction (shading). Arguments are plain arrays, scalars and tuples of
+    scalars (no records beyond the index's own: reading arrays out of records
+    costs reference-count atomics per interval), at most 30 of them: more make
+    CPython pass them as ``*args``, which Numba cannot inline. The default, for every record whose class does not
     set ``LATTICE = False``, is the exact lattice march
     (:func:`sparsecast.kernels.march.march_interval`); approximate indices (the
     BIH's single- and multi-sample modes) overload it for their record.
@@ -71,7 +73,7 @@ def next_interval(record, scratch, ray, state, t_covered):  # pragma: no cover
 
 
 def integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
-              ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):  # pragma: no cover
+              ray, wdir, t0, t1, k_next, k_max, acc):  # pragma: no cover
     """Composite one interval (see the module docstring)."""
     raise NotImplementedError("integrate is only callable from jitted code")
 
@@ -123,12 +125,15 @@ def _no_scratch(record):
 
 @overload(integrate, jit_options={"error_model": "numpy"})
 def _integrate_lattice(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
-                       shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
+                       shading, ray, wdir, t0, t1, k_next, k_max, acc):
     if record_class(record) is None or not _lattice(record):
         return None
 
     def impl(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
-             shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, t0, t1, k_next, k_max, r, g, b, a):
+             shading, ray, wdir, t0, t1, k_next, k_max, acc):
+        ox, oy, oz, dx, dy, dz = ray
+        wdx, wdy, wdz = wdir
+        r, g, b, a = acc
         return march_interval(
             flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
             wdx, wdy, wdz, inv_spacing, dt, t0, t1, k_next, k_max, r, g, b, a, ert, shading,

@@ -154,8 +154,7 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                     if go:
                         r, g, b, a, k_next, ns, nne = integrate(
                             record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
-                            ert, shading, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, s0, s1, k_next, k_hi,
-                            r, g, b, a,
+                            ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_hi, (r, g, b, a),
                         )
                         n_samples += ns
                         n_nonempty += nne
