@@ -49,7 +49,7 @@ def inverse(d):
     return 1.0 / d, False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
     """Parametric interval ``(t_near, t_far)`` of a ray inside an axis-aligned box.
 
