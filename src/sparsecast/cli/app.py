@@ -23,7 +23,7 @@ __all__ = [
     "app", "main", "out", "err", "warn", "error", "plain_console",
     "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
     "AllowOutsideOpt",
-    "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt",
+    "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt", "UpOpt",
 ]
 
 app = typer.Typer(
@@ -79,6 +79,8 @@ ProjectionOpt = Annotated[str, typer.Option(help="perspective or orthographic.")
 ZoomOpt = Annotated[float, typer.Option(help="Magnification (>1 zooms in).")]
 SizeOpt = Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")]
 OutputOpt = Annotated[Path, typer.Option("-o", "--output", help="Image file (.png, .jpg, .tif, or .npy).")]
+UpOpt = Annotated[Optional[str], typer.Option(
+    help="World axis that is up on screen: x, y, z, -x, -y or -z (default z; scanned meshes are often y-up).")]
 
 
 def main() -> None:
