@@ -29,7 +29,7 @@ from .errors import ParameterError
 
 __all__ = [
     "UP_AXES", "VIEWS", "Orientation", "axis_vector", "up_frame", "up_rotation",
-    "check_orientation", "anatomical_direction", "view_frame", "axcodes", "space_directions",
+    "check_orientation", "anatomical_direction", "view_frame", "axcodes", "space_directions", "is_mirrored",
 ]
 
 #: the names ``up`` accepts
@@ -127,6 +127,12 @@ def anatomical_direction(orientation: Orientation, letter: str) -> np.ndarray:
     return v
 
 
+def is_mirrored(orientation: Orientation | None) -> bool:
+    """Whether the codes are left-handed (LAS, RPS, ...): the world, built from the voxel
+    axes, is then the patient's mirror image, which a camera shows right only mirrored."""
+    return orientation is not None and bool(np.linalg.det(space_directions(orientation)) < 0)
+
+
 def view_frame(orientation: Orientation | None, view: str, source: str = "volume") -> np.ndarray:
     """The orbit frame whose azimuth 0, elevation 0 camera shows the patient from ``view``.
 
@@ -146,7 +152,10 @@ def view_frame(orientation: Orientation | None, view: str, source: str = "volume
     Returns
     -------
     (3, 3) ndarray of float64
-        Columns ``right``, ``forward``, ``up``; a rotation.
+        Columns ``right``, ``forward``, ``up``: a rotation, or for left-handed codes
+        (:func:`is_mirrored`: the world is the patient's mirror image) a reflection whose
+        ``right`` is still the patient's side on screen right; the camera then mirrors
+        its image (``Camera.mirror``).
 
     Raises
     ------
@@ -163,7 +172,10 @@ def view_frame(orientation: Orientation | None, view: str, source: str = "volume
             f"or use azimuth / elevation / up"
         )
     side, top = VIEWS[view.lower()]
-    return _frame(-anatomical_direction(orientation, side), anatomical_direction(orientation, top))
+    m = _frame(-anatomical_direction(orientation, side), anatomical_direction(orientation, top))
+    if is_mirrored(orientation):
+        m[:, 0] *= -1.0  # the patient's screen-right, so that azimuth turns the same anatomical way
+    return m
 
 
 def axcodes(directions: np.ndarray, space: Orientation = ("R", "A", "S")) -> Orientation | None:
