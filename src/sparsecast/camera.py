@@ -168,7 +168,8 @@ class Camera:
             if up is not None:
                 raise ParameterError(f"up: a view ({view!r}) sets the up direction itself; give up or view, not both")
             orientation = getattr(volume, "orientation", None)
-            frame = view_frame(orientation, view, repr(getattr(volume, "name", "volume")))
+            label = getattr(volume, "name", None) or getattr(volume, "source", None) or type(volume).__name__
+            frame = view_frame(orientation, view, repr(label))
             mirror = is_mirrored(orientation)
         else:
             frame = up_frame("z" if up is None else up)
