@@ -11,14 +11,20 @@ import typer
 from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
 from .app import (
-    AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
-    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, out, warn,
+    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, OutputOpt, ProjectionOpt, SizeOpt,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
-from .inputs import load_input, make_tf
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame
 from .parse import parse_background, parse_index_spec, parse_size
 
 __all__ = ["render"]
+
+# A named view is its own default angle (0, 0); otherwise the classic three-quarter view.
+OrbitAzimuthOpt = Annotated[Optional[float], typer.Option(
+    help="Orbit azimuth in degrees about the up axis (default 30; 0 from a --view, which it turns away from).")]
+OrbitElevationOpt = Annotated[Optional[float], typer.Option(
+    help="Orbit elevation in degrees (default 20; 0 from a --view).")]
 
 
 @app.command()
@@ -27,8 +33,10 @@ def render(
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
     threshold: ThresholdOpt = 0.1,
-    azimuth: AzimuthOpt = 30.0,
-    elevation: ElevationOpt = 20.0,
+    azimuth: OrbitAzimuthOpt = None,
+    elevation: OrbitElevationOpt = None,
+    up: UpOpt = None,
+    view: ViewOpt = None,
     projection: ProjectionOpt = "perspective",
     zoom: ZoomOpt = 1.0,
     size: SizeOpt = "512x512",
@@ -43,6 +51,7 @@ def render(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    orientation: OrientationOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
@@ -61,11 +70,13 @@ def render(
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
     t0 = time.perf_counter()
-    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
+    frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
         warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
-    cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
+    az, el = orbit_angles(frame, azimuth, elevation)
+    cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
                     background=bg, **index_options)
@@ -76,6 +87,7 @@ def render(
     chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
-        f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        + (f"view {frame['view']} ({''.join(vol.orientation)}), " if "view" in frame else "")
+        + f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
         f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
     )
