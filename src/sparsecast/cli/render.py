@@ -16,7 +16,7 @@ from .app import (
 )
 from ..index.registry import check_index_options
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame
-from .parse import parse_background, parse_index_spec, parse_size
+from .parse import parse_background, parse_clip_box, parse_clip_plane, parse_index_spec, parse_size
 
 __all__ = ["render"]
 
@@ -46,6 +46,11 @@ def render(
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
+    clip_box: Annotated[Optional[str], typer.Option(
+        help="Keep only x0,y0,z0,x1,y1,z1 (world units, see `sparsecast info` for the bounds).")] = None,
+    clip_plane: Annotated[Optional[list[str]], typer.Option(
+        help="Keep the side of the plane px,py,pz,nx,ny,nz that the normal points to (world units; "
+             "repeat for up to 6 planes).")] = None,
     output: OutputOpt = Path("sparsecast.png"),
     array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
     dims: DimsOpt = None,
@@ -66,6 +71,8 @@ def render(
         check_output(array, "--array", {".npy"})
     # Index options are checked before any work: a typo costs no volume load.
     index_name, index_options = parse_index_spec(index)
+    box = parse_clip_box(clip_box)
+    planes = [parse_clip_plane(p) for p in clip_plane] if clip_plane else None
     if cell is not None:
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
@@ -79,7 +86,7 @@ def render(
     cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
-                    background=bg, **index_options)
+                    background=bg, clip_box=box, clip_planes=planes, **index_options)
     img.save(output)
     if array is not None:
         img.save(array)
