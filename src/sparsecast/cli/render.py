@@ -9,6 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.atomic import check_output
+from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from .app import (
     AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, OutputOpt, ProjectionOpt, SizeOpt,
@@ -43,9 +44,15 @@ def render(
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
     index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8; auto picks one from the volume's occupancy under the TF.")] = "auto",
     cell: CellOpt = None,
-    shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
+    shade: Annotated[Optional[bool], typer.Option(
+        "--shade/--no-shade", help="Gradient (Blinn-Phong) shading (default: on for the iso modes, off for dvr).")] = None,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
+    mode: Annotated[str, typer.Option(help="dvr (volume rendering), iso (isosurfaces of --iso) or iso+dvr (both, "
+                                                "in depth order).")] = "dvr",
+    iso: Annotated[Optional[list[float]], typer.Option(
+        help="Isovalue in data units for --mode iso / iso+dvr (repeat for up to 8 surfaces; "
+             "coloured by the TF at the value).")] = None,
     clip_box: Annotated[Optional[str], typer.Option(
         help="Keep only x0,y0,z0,x1,y1,z1 (world units, see `sparsecast info` for the bounds).")] = None,
     clip_plane: Annotated[Optional[list[str]], typer.Option(
@@ -71,6 +78,12 @@ def render(
         check_output(array, "--array", {".npy"})
     # Index options are checked before any work: a typo costs no volume load.
     index_name, index_options = parse_index_spec(index)
+    if "mode" in index_options:
+        # --index bih:mode=... is the BIH's build mode, which render(mode=...) passes on.
+        if mode != "dvr":
+            raise ParameterError(f"--index {index}: the BIH's mode={index_options['mode']} is a DVR build mode; "
+                                 f"--mode {mode} builds its own (exact) index: drop one of them")
+        mode = str(index_options.pop("mode"))
     box = parse_clip_box(clip_box)
     planes = [parse_clip_plane(p) for p in clip_plane] if clip_plane else None
     if cell is not None:
@@ -86,7 +99,8 @@ def render(
     cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
-                    background=bg, clip_box=box, clip_planes=planes, **index_options)
+                    background=bg, clip_box=box, clip_planes=planes, mode=mode, iso=iso or None,
+                    **index_options)
     img.save(output)
     if array is not None:
         img.save(array)
