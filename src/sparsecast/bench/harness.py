@@ -361,6 +361,7 @@ class _TfCases:
                 samples = getattr(scene, "samples", None)
                 if samples is not None:  # a peer that knows (or estimates) its sample count
                     extra["samples"] = samples(cam, w, h)
+                extra.update(getattr(scene, "info", {}))  # e.g. which OpenGL renderer ran
                 if i == 0 and cfg.images_dir is not None:
                     path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, spec)
                     extra["image"] = str(save_png(rgba, path))
