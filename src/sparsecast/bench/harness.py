@@ -287,6 +287,10 @@ class _TfCases:
         for w, h in self.cfg.sizes:
             for i, view in enumerate(run.plan.views_for(tf_name)):
                 self.frames(w, h, i, view, indices, scenes if view in peer_views else {})
+        for scene in scenes.values():  # e.g. pyvista's OpenGL context
+            close = getattr(scene, "close", None)
+            if close is not None:
+                close()
 
     def build(self, spec: str, method: str, opts: dict[str, Any]) -> Any:
         """Time ``build_cold`` and ``rebuild`` (unless journaled) and return the index."""
