@@ -58,6 +58,12 @@ def render(
     clip_plane: Annotated[Optional[list[str]], typer.Option(
         help="Keep the side of the plane px,py,pz,nx,ny,nz that the normal points to (world units; "
              "repeat for up to 6 planes).")] = None,
+    time_step: Annotated[Optional[int], typer.Option("--time", help=(
+        "Render this step of a time series: FILE is then a folder of volume files (natural order), a quoted "
+        "glob pattern or a 4-D .npy."))] = None,
+    all_times: Annotated[bool, typer.Option("--all-times", help=(
+        "Render every step of the series FILE; -o (and --array) take a %d pattern, e.g. -o frames/%04d.png."
+    ))] = False,
     output: OutputOpt = Path("sparsecast.png"),
     array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
     dims: DimsOpt = None,
@@ -71,11 +77,17 @@ def render(
     from ..render import render as do_render
 
     width, height = parse_size(size)
+    series_mode = time_step is not None or all_times
+    if series_mode and file is None:
+        raise ParameterError("--time/--all-times: give the series as FILE (a folder, a quoted glob or a 4-D .npy)")
+    if time_step is not None and all_times:
+        raise ParameterError(f"--time {time_step} and --all-times: pick one step or all of them")
     # Every output is checked before any work: a bad --array must neither cost a render
     # nor replace -o's file before it is rejected.
-    check_output(output, "-o", IMAGE_SUFFIXES)
-    if array is not None:
-        check_output(array, "--array", {".npy"})
+    if not all_times:
+        check_output(output, "-o", IMAGE_SUFFIXES)
+        if array is not None:
+            check_output(array, "--array", {".npy"})
     # Index options are checked before any work: a typo costs no volume load.
     index_name, index_options = parse_index_spec(index)
     if "mode" in index_options:
@@ -90,6 +102,16 @@ def render(
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
     t0 = time.perf_counter()
+    if series_mode:
+        from .series import render_series
+
+        render_series(file, time_step, output, array, tf=tf, tf_range=tf_range, threshold=threshold,
+                      size=(width, height), orbit=(azimuth, elevation, up, view, projection, zoom),
+                      render_kw=dict(dt=dt, index=index_name, ert=ert, shading=shade,
+                                     background=parse_background(background), clip_box=box, clip_planes=planes,
+                                     mode=mode, iso=iso or None, **index_options),
+                      load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
+        return
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
     frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
