@@ -154,7 +154,8 @@ SUITES: dict[str, Suite] = {
     for s in (
         # Three timed frames per view, and the dense TF (each index about a naive frame)
         # on one view, keep the everyday run under two minutes on two cores.
-        Suite("quick", "the demo and the shared volumes, 512^2, two views, every index",
+        Suite("quick", "the demo and MNI152 (other shared volumes: -d NAME, or --suite paper), 512^2, two views, "
+              "every index",
               repeat=3, dense_views=1),
         Suite(
             "paper",
@@ -184,6 +185,8 @@ SUITES: dict[str, Suite] = {
               datasets=(), irt=False, sections=("bih",)),
         Suite("surface", "the RBVH section only (approximate surface ray casting)",
               datasets=(), irt=False, sections=("surface",)),
+        Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
+              "CT/MR volumes (bench.features)", datasets=(), irt=False, sections=("features",)),
     )
 }
 
