@@ -32,3 +32,18 @@ def test_label_scene_is_a_segmentation():
     ids = vol.label_ids()
     assert set(ids.tolist()) <= {0, 1, 2, 3, 4, 5} and 0 in ids and len(colours) == 5
     assert np.count_nonzero(vol.data == 1) >= np.count_nonzero(vol.data == 5)  # 1 is the largest
+
+
+def test_features_table_prints_each_record():
+    from rich.console import Console
+
+    from sparsecast.bench.report import format_features
+
+    rec = dict(section="features", phase="render", dataset="d", case="iso", variant="lbvh", method="lbvh",
+               width=8, height=8, ms=2.0, ms_min=1.5, ms_max=3.0, cores_busy=0.9, samples=1234, speedup=4.2,
+               max_abs_diff=0.0)
+    assert format_features([{**rec, "section": "bih"}]) is None
+    console = Console(width=200, record=True)
+    console.print(format_features([rec]))
+    text = console.export_text()
+    assert "iso" in text and "4.20" in text and "1.5-3.0" in text

@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import FileFormatError
 from .._util.atomic import atomic_path
 
-__all__ = ["format_table", "format_summary", "write_json", "load_records"]
+__all__ = ["format_table", "format_summary", "format_features", "write_json", "load_records"]
 
 
 def _fmt(v: Any, spec: str) -> str:
@@ -112,6 +112,30 @@ def format_summary(records: list[dict[str, Any]]):
                       _fmt(b.rebuild_ms, ".2f"), *vs)
     table.caption = _timing_caption(records) + (
         "; spread % = (max - min) / median of the timed runs, median over views" if rows else "")
+    return table
+
+
+def format_features(records: list[dict[str, Any]]):
+    """The ``features`` section (:mod:`.features`) as a table, or None when the run has none:
+    per case and variant the median frame ms of the interleaved rounds, min-max, cores
+    busy, samples, the speed-up within the case and the max abs diff against naive."""
+    from rich.table import Table
+
+    rows = [r for r in records if r.get("section") == "features" and r.get("phase") == "render"]
+    if not rows:
+        return None
+    table = Table(title="sparsecast bench: labels, clipping, isosurfaces (interleaved rounds per case)")
+    for col in ("dataset", "case", "variant", "index", "size", "ms (median)", "min-max", "cores busy",
+                "M samples", "speed-up", "max |diff| vs naive"):
+        table.add_column(col, justify="left" if col in ("dataset", "case", "variant", "index", "size") else "right")
+    for r in rows:
+        table.add_row(str(r.get("dataset")), str(r.get("case")), str(r.get("variant")), str(r.get("method")),
+                      f"{r.get('width')}x{r.get('height')}", _fmt(r.get("ms"), ".1f"),
+                      f"{_fmt(r.get('ms_min'), '.1f')}-{_fmt(r.get('ms_max'), '.1f')}",
+                      _fmt(r.get("cores_busy"), ".2f"), _fmt((r.get("samples") or 0) / 1e6, ".2f"),
+                      _fmt(r.get("speedup"), ".2f"), _fmt(r.get("max_abs_diff"), ".1e"))
+    table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box, iso naive / index; "
+                     "ratios of medians within one interleaved run")
     return table
 
 
