@@ -10,7 +10,7 @@ import pytest
 
 import sparsecast as sc
 from sparsecast.index import index_options, parse_index_spec
-from sparsecast.index.registry import RENDER_PARAMETERS, indices_taking
+from sparsecast.index.registry import RENDER_PARAMETERS, SHARED_WITH_INDICES, indices_taking
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,8 @@ def test_render_parameters_are_not_build_options(key, option):
 def test_render_parameter_table_matches_render_signature():
     params = inspect.signature(sc.render).parameters
     named = {n for n, p in params.items() if p.kind is not p.VAR_KEYWORD}
-    assert named == set(RENDER_PARAMETERS)
-    # and no index takes an option that render() would swallow
+    assert named == set(RENDER_PARAMETERS) | set(SHARED_WITH_INDICES)
+    assert not set(RENDER_PARAMETERS) & set(SHARED_WITH_INDICES)
+    # and no index takes an option that render() would swallow (mode: passed on to the BIH)
     for name in sc.available_indices():
-        assert not set(index_options(name) or ()) & named, name
+        assert not set(index_options(name) or ()) & (named - set(SHARED_WITH_INDICES)), name

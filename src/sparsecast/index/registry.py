@@ -45,6 +45,9 @@ RENDER_PARAMETERS: dict[str, str] = {
     "initial": "render(initial=...)", "rect": "render(rect=...)", "max_samples": "render(max_samples=...)",
     "iso": "--iso", "iso_colors": "render(iso_colors=...)",
 }
+#: render() parameters that an index may take as a build option too: ``render(mode=...)``
+#: passes the BIH's build modes (``ess``, ``single-sample``, ``multi-sample``) on to it
+SHARED_WITH_INDICES: dict[str, str] = {"mode": "render(mode='dvr' | 'iso' | 'iso+dvr')"}
 
 
 def index_options(name: str) -> tuple[str, ...] | None:
