@@ -10,6 +10,7 @@ import typer
 
 from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
+from ..kernel_cache import compile_note, compile_seconds
 from .app import (
     AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, out, warn,
@@ -61,6 +62,7 @@ def render(
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
     t0 = time.perf_counter()
+    c0 = compile_seconds()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
@@ -74,8 +76,12 @@ def render(
         img.save(array)
     s = img.stats
     chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
+    # First-use compilation is timed apart from the build and the frame (both exclude it),
+    # and named only when there was some: a start from the kernel cache prints none.
+    note = compile_note(compile_seconds() - c0)
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
-        f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
-        f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
+        f"{chosen}, build {s['build_ms']:.0f} ms, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        f"{s['msamples_per_s']:.1f} M samples/s; " + (f"{note}, " if note else "")
+        + f"{time.perf_counter() - t0:.1f} s total)"
     )
