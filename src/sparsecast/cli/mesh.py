@@ -12,6 +12,7 @@ from .._util.checks import one_of
 from ..errors import ParameterError
 from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
+from ..kernel_cache import compile_note, compile_seconds
 from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, ZoomOpt, app, out
 from .parse import parse_size
 
@@ -41,7 +42,7 @@ def render_mesh(
     from ..camera import Camera
     from ..io.meshes import load_mesh, load_points
     from ..surface import build_bvh, build_rbvh, render_surface
-    from ..surface.mesh import icosphere, z_up
+    from ..surface.mesh import tiny_points, warmup_mesh, z_up
     from ..surface.render import MODES
 
     one_of(index, "--index", INDICES)
@@ -62,21 +63,21 @@ def render_mesh(
             surface = z_up(surface)
         what = f"{surface.n_triangles} triangles"
     build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else build_bvh
-    # Compile the build kernels on a tiny mesh first (Numba caches them on disk), so the
-    # build time printed below is the build's, not the first run's JIT compilation.
-    t_jit = time.perf_counter()
-    if not points:
-        build(icosphere(3))
-    jit_ms = (time.perf_counter() - t_jit) * 1e3
+    # Compile the build kernels on a tiny surface of the same kind first (Numba caches
+    # them on disk), so the build time printed below is the build's, not the first
+    # run's JIT compilation; render_surface does the same for its kernel.
+    c0 = compile_seconds()
+    build(tiny_points() if points else warmup_mesh())
     idx = build(surface)
     cam = Camera.orbit(surface, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     img = render_surface(idx, cam, width, height, mode=mode)
     img.save(output)
     s, st = img.stats, idx.stats()
+    note = compile_note(compile_seconds() - c0)
     out.print(
         f"wrote {output} ({width}x{height}, {file.name}: {what}, index {index}"
         + (f" {quality}, {st['tiles']} tiles" if index == "rbvh" else "")
         + f", {st['nodes']} nodes, {st['bytes'] / 2**20:.1f} MiB; build {st['build_ms']:.0f} ms, "
-        f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; {time.perf_counter() - t0:.1f} s total"
-        + (f", of which {jit_ms / 1e3:.1f} s compiling the build kernels on first use)" if jit_ms > 1000 else ")")
+        f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; " + (f"{note}, " if note else "")
+        + f"{time.perf_counter() - t0:.1f} s total)"
     )

@@ -117,6 +117,11 @@ def check_index_options(name: str, options: dict[str, Any]) -> None:
         raise ParameterError(msg)
 
 
+def index_class(name: str) -> type[SpatialIndex]:
+    """The class registered under ``name`` (:class:`ParameterError` for an unknown name)."""
+    return _index_class(name)
+
+
 def _index_class(name: str) -> type[SpatialIndex]:
     cls = _INDICES.get(name)
     if cls is None:
