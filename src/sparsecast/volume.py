@@ -258,6 +258,14 @@ class Volume:
 _WARM_DTYPES: set[str] = set()
 
 
+def _tiny_voxels(dtype: np.dtype) -> np.ndarray:
+    """3^3 voxels typed as a Volume's: read-only, which Numba types apart from writable
+    (a writable warm-up array compiled a specialisation the real pass never used)."""
+    tiny = np.zeros((3, 3, 3), dtype)
+    tiny.setflags(write=False)
+    return tiny
+
+
 def _warm_brick_kernel(dtype: np.dtype) -> float:
     """Compile (or load) :func:`brick_minmax` for ``dtype`` on a 3^3 array, once per process.
 
@@ -267,11 +275,9 @@ def _warm_brick_kernel(dtype: np.dtype) -> float:
     if dtype.str in _WARM_DTYPES:
         return 0.0
     t0 = time.perf_counter()
-    tiny = np.zeros((3, 3, 3), dtype)
-    tiny.setflags(write=False)  # as a Volume's voxels: Numba types read-only arrays apart
     out = np.empty((1, 1, 1), np.float64)
     with parallel_section():
-        brick_minmax(tiny, BASE_BRICK, 1, 1, 1, out, out.copy())
+        brick_minmax(_tiny_voxels(dtype), BASE_BRICK, 1, 1, 1, out, out.copy())
     _WARM_DTYPES.add(dtype.str)
     return (time.perf_counter() - t0) * 1e3
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cli_runner import run_cli
@@ -57,10 +58,11 @@ def test_bad_options_are_one_error(monkeypatch, capsys, args, option, found):
     assert err.startswith(f"error: {option}: ") and found in err and len(err.strip().splitlines()) == 1
 
 
-def _compile(cache: Path, *args: str) -> str:
+def _sparsecast(cache: Path, *args: str) -> str:
+    """stdout of ``python -m sparsecast ARGS`` in a subprocess using the kernel cache under ``cache``."""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "SPARSECAST_CACHE_DIR")}
     env["SPARSECAST_CACHE_DIR"] = str(cache)
-    res = subprocess.run([sys.executable, "-m", "sparsecast", "compile", *args], env=env,
+    res = subprocess.run([sys.executable, "-m", "sparsecast", *args], env=env,
                          capture_output=True, text=True, timeout=240)
     assert res.returncode == 0, res.stderr
     return res.stdout
@@ -68,16 +70,59 @@ def _compile(cache: Path, *args: str) -> str:
 
 def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path):
     """A subset (one dtype, one index: two steps) in a subprocess with its own cache folder."""
-    args = ("--only", "volume", "--dtype", "uint8", "--index", "naive")
-    first = _compile(tmp_path, *args)
+    args = ("compile", "--only", "volume", "--dtype", "uint8", "--index", "naive")
+    cache = tmp_path / "cache"
+    first = _sparsecast(cache, *args)
     m = re.search(r"compiled 2 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s", first)
     assert m, first
     assert float(m.group(2)) > 0
-    folder = tmp_path / f"kernels-{kernel_cache.source_hash()}"
+    folder = cache / f"kernels-{kernel_cache.source_hash()}"
     assert f"cache {folder}" in first
     cached = {p.name.split("-")[0] for p in folder.rglob("*.nbi")}
     # The driver (specialised for the naive record and uint8) and the brick kernel are cached.
     assert {"driver.dvr_tile", "driver.dvr_tiles", "bricks.brick_minmax"} <= cached, sorted(cached)
-    second = _compile(tmp_path, *args)
+    second = _sparsecast(cache, *args)
     m2 = re.search(r"Numba compiling ([\d.]+) s", second)
     assert m2 and float(m2.group(1)) == 0.0, second  # everything came from the cache
+    # What compile compiled is what render runs: a uint8 volume with that index compiles nothing.
+    vol = tmp_path / "vol.npy"
+    np.save(vol, (np.random.default_rng(1).random((20, 18, 16)) * 255).astype(np.uint8))
+    line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "-o", str(tmp_path / "a.png"))
+    assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
+
+
+def _fake_clock(monkeypatch, module: str, seconds: list[float]) -> None:
+    """Make ``module``'s compile clock read ``seconds`` in turn (then the last value)."""
+    values = iter(seconds)
+    last = [seconds[-1]]
+
+    def clock() -> float:
+        last[0] = next(values, last[0])
+        return last[0]
+
+    monkeypatch.setattr(f"sparsecast.cli.{module}.compile_seconds", clock)
+
+
+def _mesh_file(tmp_path: Path) -> Path:
+    import trimesh
+
+    from sparsecast.surface.mesh import icosphere
+
+    path = tmp_path / "sphere.ply"
+    s = icosphere(2)
+    trimesh.Trimesh(s.vertices, s.faces, process=False).export(path)
+    return path
+
+
+@pytest.mark.parametrize("command", ["render", "info", "render-mesh"])
+@pytest.mark.parametrize("compiled", [0.0, 2.5])
+def test_status_line_names_compilation_apart_only_when_there_was_some(monkeypatch, capsys, tmp_path,
+                                                                      small_volume_file, command, compiled):
+    module = {"render": "render", "info": "info", "render-mesh": "mesh"}[command]
+    _fake_clock(monkeypatch, module, [10.0, 10.0 + compiled])
+    args = {"render": [str(small_volume_file), "--size", "16x16", "-o", str(tmp_path / "a.png")],
+            "info": [str(small_volume_file)],
+            "render-mesh": [str(_mesh_file(tmp_path)), "--size", "16x16", "-o", str(tmp_path / "m.png")]}[command]
+    code, out, err = run_cli(monkeypatch, capsys, command, *args)
+    assert code == 0, err
+    assert re.findall(r"compile \d+ ms", out) == (["compile 2500 ms"] if compiled else []), out
