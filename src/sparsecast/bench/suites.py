@@ -1,7 +1,7 @@
 """Benchmark suites as data: datasets x methods x image sizes x views x TFs.
 
-- ``quick``: the everyday run (what a plain ``sparsecast bench`` does), under two
-  minutes on two cores.
+- ``quick``: the everyday run (what a plain ``sparsecast bench`` does), about a
+  minute on two cores (each suite's measured ``duration`` is kept on it).
 - ``paper``: the papers' evaluation: every shared volume and the generated n-body
   fields at 128^3 / 256^3 / 512^3, every registered index, 512^2 and 1024^2, the
   camera orbiting in fixed steps around the three axes, sparse and dense TF, the
@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import ParameterError
 from .catalog import DATASETS
 
-__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method"]
+__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method", "suites_help"]
 
 
 def orbit_views(steps: int) -> list[tuple[float, float]]:
@@ -90,10 +90,18 @@ class Suite:
         Views the peers render (the first N).
     sections : tuple of str
         Modules ``sparsecast.bench.<name>`` with a ``run(...)`` of their own tables.
+    short : str
+        A few words for ``sparsecast bench --help``.
+    duration : str or None
+        Wall time of a whole run on the reference machine of the README's Performance
+        section (2-core VM), as the README's suite table and ``--help`` print it;
+        None where not measured. The one place these figures live.
     """
 
     name: str
     description: str
+    short: str = ""
+    duration: str | None = None
     datasets: tuple[str, ...] | None = None
     methods: tuple[str, ...] | None = None
     index_modes: bool = False
@@ -151,16 +159,18 @@ SUITES: dict[str, Suite] = {
         # Three timed frames per view, and the dense TF (each index about a naive frame)
         # on one view, keep the everyday run under two minutes on two cores.
         Suite("quick", "the demo and the shared volumes, 512^2, two views, every index",
-              repeat=3, dense_views=1),
+              short="the default run", duration="70 s", repeat=3, dense_views=1),
         Suite(
             "paper",
             "every shared volume and the n-body fields at 128^3/256^3/512^3, every index, "
             "512^2 and 1024^2, orbits around x, y, z, sparse + dense TF, peers, BIH and RBVH sections",
+            short="the papers' evaluation",
+            duration="13.8 min",
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
             views=tuple(orbit_views(4)),
             index_modes=True,
-            # Budget (2 cores, ~30 min): 12 views with the sparse TF; with the dense one
+            # Budget (2 cores, under 30 min): 12 views with the sparse TF; with the dense one
             # every index costs about a naive frame, which 2 views show; peers 1 view.
             dense_views=2,
             peer_views=1,
@@ -170,14 +180,20 @@ SUITES: dict[str, Suite] = {
             sections=("bih", "surface"),
         ),
         Suite("sweep", "the synthetic cluster sweeps of Fig. 5 at 256^3 (a: growing radius, b: more clusters)",
+              short="Fig. 5 clusters", duration="28 s",
               datasets=tuple(n for n in DATASETS if n.startswith(("fig5a-256-", "fig5b-256-"))),
               dense_tf=False, repeat=1, warmup=0, irt=False),
-        Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)",
+        Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)", short="BIH section",
               datasets=(), irt=False, sections=("bih",)),
-        Suite("surface", "the RBVH section only (approximate surface ray casting)",
+        Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
               datasets=(), irt=False, sections=("surface",)),
     )
 }
+
+
+def suites_help() -> str:
+    """``quick (the default run, 70 s), paper (...), ...``: the suites as ``--suite``'s help lists them."""
+    return ", ".join(f"{s.name} ({s.short}" + (f", {s.duration})" if s.duration else ")") for s in SUITES.values())
 
 
 def get_suite(name: str) -> Suite:
