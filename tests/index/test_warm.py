@@ -45,3 +45,18 @@ def test_warm_up_failure_leaves_the_error_to_the_real_build(monkeypatch):
     with pytest.raises(sc.ParameterError, match="cell"):
         sc.build_index(vol, tf, "grid-pc", cell=5)
     assert not warm._WARM
+
+
+@pytest.mark.parametrize("name", ["kdtree-deep", "bih"])
+def test_the_timed_build_compiles_nothing_after_the_warm_up(monkeypatch, name):
+    """Checked on a cold kernel cache (after a kernel edit), trivially on a warm one."""
+    from sparsecast import kernel_cache
+    from sparsecast.index.registry import index_class
+
+    monkeypatch.setattr(warm, "_WARM", set())
+    vol = sc.datasets.nbody_blobs(28, n_clusters=3, blobs_per_cluster=4, seed=2, dtype=np.uint16)
+    tf = sc.TransferFunction.preset("bone", value_range=vol.value_range)
+    warm.warm_build(index_class(name), vol, tf, {})
+    before = kernel_cache.compile_seconds()
+    index_class(name)(vol, tf)
+    assert kernel_cache.compile_seconds() == before
