@@ -16,7 +16,8 @@ Contract implemented (unshaded only; gradient shading is not modelled):
 * Samples at ``t_k = k * dt`` for every integer ``k`` with ``t_k >= 0`` and
   ``t_near <= t_k <= t_far``.
 * Trilinear interpolation with coordinates clamped to the box; vertex-centred voxels,
-  ``data[k, j, i]`` is the value at point ``(i, j, k)``.
+  ``data[k, j, i]`` is the value at point ``(i, j, k)``. Label TFs
+  (``tf.sampling == "nearest"``) read the nearest voxel, ``floor(c + 0.5)`` per axis.
 * TF lookup ``x = clamp((v - lo) * scale, 0, n-1)``, ``i = min(floor(x), n-2)``, linear
   blend of rows ``i`` and ``i+1`` of ``tf.opacity_table(dt, unit)`` with
   ``unit = tf.unit_distance or min(spacing)``.
@@ -138,6 +139,15 @@ def trilinear(data: np.ndarray, x, y, z) -> np.ndarray:
     return c0 + fz * (c1 - c0)
 
 
+def nearest(data: np.ndarray, x, y, z) -> np.ndarray:
+    """Value of the voxel nearest to index points ``(x, y, z)``: ``floor(c + 0.5)`` clamped
+    to the box (ties round up), for label TFs (``tf.sampling == "nearest"``)."""
+    nz, ny, nx = data.shape
+    idx = [np.clip(np.floor(np.asarray(c, np.float64) + 0.5), 0, n - 1).astype(np.int64)
+           for c, n in ((x, nx), (y, ny), (z, nz))]
+    return data[idx[2], idx[1], idx[0]].astype(np.float64)
+
+
 def tf_lookup(table: np.ndarray, v: np.ndarray, v_lo: float, scale: float) -> np.ndarray:
     """RGBA (straight colour, table opacity) at values ``v``; shape ``v.shape + (4,)``."""
     n = table.shape[0]
@@ -191,6 +201,7 @@ def reference_render(
     v_lo = float(tf.value_range[0])
     scale = float(tf.scale)
     bg = _background(background)
+    sample = {"trilinear": trilinear, "nearest": nearest}[getattr(tf, "sampling", "trilinear")]
 
     wo, wd = camera.rays(width, height)
     wo = wo.reshape(-1, 3).astype(np.float64)
@@ -220,7 +231,7 @@ def reference_render(
                 continue
             t = k * dt
             p = o[sel] + t * d[sel]
-            v = trilinear(data, p[:, 0], p[:, 1], p[:, 2])
+            v = sample(data, p[:, 0], p[:, 1], p[:, 2])
             rgba = tf_lookup(table, v, v_lo, scale)
             samples[sel] += 1
             a = rgba[:, 3]

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+import sparsecast as sc
 from sparsecast import ParameterError, Volume
 from reference import trilinear
 
@@ -85,3 +86,52 @@ def test_brick_kernel_warm_up_compiles_what_the_real_pass_runs(monkeypatch):
     again = Volume(vol.data.copy()).brick_stats(4)
     assert again.compile_ms == 0.0  # once per dtype and process
     np.testing.assert_array_equal(again.vmin, stats.vmin)
+
+
+# -- per-brick label sets (issue 19, label volumes) -------------------------------------
+def _brute_sets(data, b):
+    nz, ny, nx = data.shape
+    nb = [max(1, -(-(n - 1) // b)) for n in data.shape]
+    out = {}
+    for k in range(nb[0]):
+        for j in range(nb[1]):
+            for i in range(nb[2]):
+                win = data[max(k * b - 1, 0):min((k + 1) * b + 1, nz - 1) + 1,
+                           max(j * b - 1, 0):min((j + 1) * b + 1, ny - 1) + 1,
+                           max(i * b - 1, 0):min((i + 1) * b + 1, nx - 1) + 1]
+                out[k, j, i] = set(np.unique(win).tolist())
+    return out
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "int16", "float32"])
+@pytest.mark.parametrize("brick", [4, 8, 16])
+def test_brick_labels_equal_the_ids_of_each_apron_window(dtype, brick):
+    rng = np.random.default_rng(5)
+    data = np.zeros((37, 21, 50), dtype)
+    for label in (3, 9, 70, 71):
+        z, y, x = (int(rng.integers(0, n - 4)) for n in data.shape)
+        data[z:z + 5, y:y + 9, x:x + 3] = label if dtype != "int16" else label - 40
+    vol = sc.Volume(data)
+    sets = vol.brick_labels(brick)
+    assert sets is vol.brick_labels(brick)  # cached
+    assert sets.words.shape[:3] == vol.brick_stats(brick).shape
+    for (k, j, i), want in _brute_sets(data, brick).items():
+        got = {int(sets.ids[r]) for r in range(len(sets.ids))
+               if sets.words[k, j, i, r // 64] >> np.uint64(r % 64) & np.uint64(1)}
+        assert got == want, (k, j, i)
+
+
+def test_brick_labels_are_none_for_fields():
+    rng = np.random.default_rng(0)
+    assert sc.Volume(rng.random((9, 9, 9)).astype(np.float32)).brick_labels() is None
+    many = np.arange(20 * 20 * 20, dtype=np.uint16).reshape(20, 20, 20)  # 8000 distinct values
+    assert sc.Volume(many).brick_labels() is None
+
+
+def test_rank_words_ignore_ids_the_volume_lacks():
+    data = np.zeros((10, 10, 10), np.uint8)
+    data[2:5, 2:5, 2:5] = 7
+    sets = sc.Volume(data).brick_labels()
+    assert list(sets.ids) == [0, 7]
+    assert sets.rank_words([7, 9, 200]).tolist() == [2]
+    assert sets.rank_words([]).tolist() == [0]

@@ -29,7 +29,7 @@ from .image import Image
 from .render import render
 from .io.particles import load_particles
 from .render.particles import render_particles
-from .transfer import PRESETS, TransferFunction
+from .transfer import PRESETS, LabelTransferFunction, TransferFunction
 from .volume import BrickStats, Volume
 from .warmup import compile_kernels
 
@@ -56,6 +56,7 @@ __all__ = [
     "SparsecastError",
     "SpatialIndex",
     "TransferFunction",
+    "LabelTransferFunction",
     "TransferFunctionError",
     "Volume",
     "VolumeDataError",

@@ -184,7 +184,7 @@ def brick_elements(volume: Volume, tf, brick: int = 8) -> Elements:
     the packed tree's leaves are the bricks exactly.
     """
     stats = volume.brick_stats(brick)
-    occ = tf.classify(stats.vmin, stats.vmax)
+    occ = tf.classify_bricks(volume, brick)
     bz, by, bx = np.nonzero(occ)
     lo = np.stack([bx, by, bz], axis=1).astype(np.float64) * brick
     hi = lo + brick

@@ -8,13 +8,18 @@ neighbouring entries (values outside the range clamp to the end entries).
 Emptiness queries ("is the opacity zero for every value in ``[lo, hi]``?") are O(1):
 a prefix count of entries with non-zero opacity answers them without looking at
 voxels, which is what makes rebuilding an empty-space index on a TF change cheap.
+
+Label volumes (segmentations) take a :class:`LabelTransferFunction`
+(:meth:`TransferFunction.labels`): one table entry per label id, nearest sampling.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -23,8 +28,9 @@ from ._util.atomic import atomic_path
 from .tf_schema import check_tf_dict, read_tf_file
 from .kernels.parallel import parallel_section
 from .kernels.classify import classify_ranges, entry_span, range_is_empty
+from .kernels.label_sets import any_visible
 
-__all__ = ["TransferFunction", "PRESETS"]
+__all__ = ["TransferFunction", "LabelTransferFunction", "PRESETS", "LABELS_FORMAT", "MAX_LABEL_SPAN"]
 
 _MIN_TABLE, _MAX_TABLE = 256, 4096
 #: baked opacities below this are stored as exactly 0 (far below one 16-bit step)
@@ -89,6 +95,10 @@ class TransferFunction:
     >>> tf.is_empty(0.0, 0.5)
     False
     """
+
+    #: how renderers sample the volume for this TF: ``"trilinear"`` (scalar fields) or
+    #: ``"nearest"`` (label ids, see :class:`LabelTransferFunction`)
+    sampling = "trilinear"
 
     def __init__(
         self,
@@ -194,6 +204,27 @@ class TransferFunction:
         pts[:, 0] = lo + norm[:, 0] * span
         return cls(pts, (lo, lo + span), table_size=table_size, unit_distance=unit_distance, name=key)
 
+    @classmethod
+    def labels(
+        cls,
+        labels: "Mapping[Any, Any] | Iterable[Any]",
+        *,
+        cmap: str = "tab20",
+        opacity: float | None = None,
+        unit_distance: float | None = None,
+        name: str = "labels",
+    ) -> "LabelTransferFunction":
+        """A TF for a label volume: ``{id: (r, g, b, a)}`` or a list of ids to colour
+        distinctly; other ids hidden; nearest sampling. See :class:`LabelTransferFunction`.
+
+        Examples
+        --------
+        >>> tf = TransferFunction.labels({1: (1, 0, 0, 1), 2: (0, 1, 0, 0.5)})
+        >>> tf.sampling, tf.visible
+        ('nearest', (1, 2))
+        """
+        return LabelTransferFunction(labels, cmap=cmap, opacity=opacity, unit_distance=unit_distance, name=name)
+
     def _bake(self) -> np.ndarray:
         lo, hi = self.value_range
         xs = np.linspace(lo, hi, self.table_size)
@@ -259,6 +290,21 @@ class TransferFunction:
             classify_ranges(self._prefix, float(self.value_range[0]), self.scale, lo.ravel(), hi.ravel(), out)
         return out.reshape(lo.shape)
 
+    def classify_bricks(self, volume, brick_size: int = 8) -> np.ndarray:
+        """True for the bricks of ``volume`` (``Volume.brick_stats(brick_size)``) that
+        may hold a sample of non-zero opacity: ``(nbz, nby, nbx)`` bool.
+
+        What every brick-based index builds from; a label TF refines it with the
+        volume's per-brick label sets.
+        """
+        stats = volume.brick_stats(brick_size)
+        return self.refine_bricks(volume, brick_size, self.classify(stats.vmin, stats.vmax))
+
+    def refine_bricks(self, volume, brick_size: int, occupied: np.ndarray) -> np.ndarray:
+        """Brick occupancy from value ranges, refined by what the TF knows beyond ranges
+        (the same array here; a label TF removes bricks without a visible id)."""
+        return occupied
+
     def opacity_table(self, dt: float, unit_distance: float) -> np.ndarray:
         """Table with opacity corrected for step ``dt``: ``1 - (1 - a) ** (dt / unit)``.
 
@@ -296,6 +342,8 @@ class TransferFunction:
     def from_dict(cls, d: dict, *, source: str = "dict") -> "TransferFunction":
         """A TF from the fields :meth:`to_dict` writes, checked against the schema of
         :mod:`sparsecast.tf_schema` (errors name the field)."""
+        if isinstance(d, dict) and d.get("format") == LABELS_FORMAT:
+            return LabelTransferFunction.from_dict(d, source=source)
         f = check_tf_dict(d, source)
         try:
             return cls(f["points"], f["value_range"], table_size=f["table_size"],
@@ -350,3 +398,276 @@ def _colormap_points(name: str, threshold: float, max_opacity: float) -> np.ndar
     # Fully transparent from 0 to the threshold.
     head = np.array([[0.0, *rgb[0], 0.0]])
     return np.vstack([head, body]) if threshold > 0 else body
+
+LABELS_FORMAT = "sparsecast-labels/1"
+#: table entries of a label TF (one per id in the span, plus a hidden entry at each end)
+_MAX_TABLE = 65536
+#: most label ids a label TF spans (max id - min id + 1): uint16 segmentations fit
+MAX_LABEL_SPAN = _MAX_TABLE - 2
+_MIN_TABLE = 256
+
+
+def _rgba(value: Any, where: str, opacity: float | None) -> tuple[float, float, float, float]:
+    """Straight RGBA of a colour given as 3 or 4 numbers in [0, 1] or a Matplotlib name."""
+    if isinstance(value, str):
+        from matplotlib.colors import to_rgba  # deferred: only named colours need it
+
+        try:
+            rgba = tuple(float(c) for c in to_rgba(value))
+        except ValueError:
+            raise TransferFunctionError(f"{where}: {value!r} is not a colour name; expected e.g. 'red', "
+                                        "'tab:blue', '#ff8800' or [r, g, b(, a)]") from None
+    else:
+        try:
+            rgba = tuple(float(c) for c in value)
+        except (TypeError, ValueError):
+            raise TransferFunctionError(f"{where}: expected [r, g, b] or [r, g, b, a] in [0, 1] or a colour "
+                                        f"name, got {value!r}") from None
+        if len(rgba) == 3:
+            rgba = rgba + (1.0,)
+        if len(rgba) != 4:
+            raise TransferFunctionError(f"{where}: expected 3 or 4 numbers (r, g, b[, a]), got {len(rgba)}")
+        if not all(np.isfinite(rgba)) or min(rgba) < 0.0 or max(rgba) > 1.0:
+            raise TransferFunctionError(f"{where}: expected numbers in [0, 1], got {list(rgba)}")
+    if opacity is not None:
+        rgba = rgba[:3] + (rgba[3] * opacity,)
+    return rgba  # type: ignore[return-value]
+
+
+def _label_id(key: Any, where: str) -> int:
+    """An integer label id from an int, an integral float or a decimal string (JSON keys)."""
+    if isinstance(key, bool):
+        raise TransferFunctionError(f"{where}: expected an integer label id, got {key!r}")
+    if isinstance(key, str):
+        try:
+            return int(key.strip(), 10)
+        except ValueError:
+            raise TransferFunctionError(f"{where}: expected an integer label id, got {key!r}") from None
+    if isinstance(key, (int, np.integer)):
+        return int(key)
+    if isinstance(key, (float, np.floating)) and float(key).is_integer():
+        return int(key)
+    raise TransferFunctionError(f"{where}: expected an integer label id, got {key!r}")
+
+
+# -- label volumes ---------------------------------------------------------
+
+class LabelTransferFunction(TransferFunction):
+    """Per-label colour and opacity for a label volume, sampled with the nearest voxel.
+
+    A :class:`LabelTransferFunction` is a :class:`~sparsecast.transfer.TransferFunction`
+    whose table holds one entry per integer label id, sampled with the *nearest*
+    voxel (``sampling = "nearest"``), so ids are never blended. Labels not in the
+    mapping, and labels given opacity 0, are hidden. Everything that works on a TF
+    table works unchanged: the prefix count answers "is any label in ``[lo, hi]``
+    visible?" for brick ranges, and the driver's nearest sampler reads table entry
+    ``id - lo`` exactly (the table's scale is one entry per id, so no interpolation
+    weight is ever fractional).
+
+    Hiding labels whose ids lie between visible ones leaves those bricks inside a
+    visible range; :meth:`LabelTransferFunction.visible_words` gives the visible set
+    as a bit set, which the volume's per-brick label sets
+    (:meth:`sparsecast.volume.Volume.brick_labels`) classify exactly.
+
+    The JSON format (``sparsecast-labels/1``)::
+
+        {"format": "sparsecast-labels/1", "name": "organs",
+         "labels": {"1": [1, 0, 0, 1], "2": "tab:green", "7": [0.2, 0.4, 1.0, 0.3]}}
+
+    Keys are label ids (integers as strings, JSON keys are strings); values are
+    ``[r, g, b]``, ``[r, g, b, a]`` in ``[0, 1]`` or a Matplotlib colour name.
+
+    Parameters
+    ----------
+    labels : mapping of int to colour, or iterable of int
+        ``{id: (r, g, b, a)}`` (straight colour; ``(r, g, b)`` means opaque; a
+        Matplotlib colour name is accepted), or just the ids to show, which get
+        distinct colours from ``cmap``. Other ids are hidden.
+    cmap : str
+        Matplotlib colour map for ids given without a colour (qualitative maps such
+        as ``tab20`` cycle).
+    opacity : float, optional
+        Multiplies every label's opacity (default 1).
+    unit_distance : float, optional
+        As for :class:`TransferFunction` (default: one voxel).
+    name : str
+        Label for messages and benchmark records.
+
+    Examples
+    --------
+    >>> tf = LabelTransferFunction({1: (1, 0, 0, 1), 2: (0, 1, 0, 0.5)})
+    >>> tf.is_empty(4, 9), tf.is_empty(0, 1)   # ranges are widened by an ulp-sized margin
+    (True, False)
+    """
+
+    sampling = "nearest"
+
+    def __init__(
+        self,
+        labels: Mapping[Any, Any] | Iterable[Any],
+        *,
+        cmap: str = "tab20",
+        opacity: float | None = None,
+        unit_distance: float | None = None,
+        name: str = "labels",
+    ) -> None:
+        if opacity is not None and not (np.isfinite(opacity) and 0.0 <= opacity <= 1.0):
+            raise TransferFunctionError(f"opacity: expected a number in [0, 1], got {opacity!r}")
+        if unit_distance is not None and not (np.isfinite(unit_distance) and unit_distance > 0):
+            raise TransferFunctionError(f"unit_distance: expected a positive number or None, got {unit_distance!r}")
+        if isinstance(labels, Mapping):
+            items = [(_label_id(k, f"labels[{k!r}]"), v) for k, v in labels.items()]
+        elif isinstance(labels, (str, bytes)) or not isinstance(labels, Iterable):
+            raise TransferFunctionError(f"labels: expected a mapping id -> colour or a list of ids, "
+                                        f"got {type(labels).__name__}")
+        else:
+            ids = sorted({_label_id(k, f"labels[{k!r}]") for k in labels})
+            items = list(zip(ids, _distinct_colours(len(ids), cmap)))
+        if not items:
+            raise TransferFunctionError("labels: expected at least one label id")
+        colours = {i: _rgba(v, f"labels[{i}]", opacity) for i, v in items}
+        lo_id, hi_id = min(colours), max(colours)
+        span = hi_id - lo_id + 1
+        if span > MAX_LABEL_SPAN:
+            raise TransferFunctionError(
+                f"labels: ids span {lo_id}..{hi_id} ({span} ids); expected a span of at most {MAX_LABEL_SPAN}")
+        size = max(_MIN_TABLE, span + 2)
+        # Entry 0 is id lo_id - 1, so ids below and above the span clamp onto hidden
+        # entries (the first, and the padding after the last id).
+        v0 = float(lo_id - 1)
+        table = np.zeros((size, 4), np.float32)
+        for i, c in colours.items():
+            table[i - lo_id + 1] = c
+        self.labels = dict(sorted(colours.items()))
+        self.cmap = cmap
+        self.value_range = (v0, v0 + size - 1)  # scale (size - 1) / span == 1 exactly
+        self.table_size = size
+        self.unit_distance = None if unit_distance is None else float(unit_distance)
+        self.name = name
+        self.table = table
+        self.table.flags.writeable = False
+        self._prefix = np.concatenate(([0], np.cumsum(table[:, 3] > 0))).astype(np.int64)
+        # One step per id: what the piecewise-linear view (viewer, repr) shows.
+        pts = [(float(i), *c) for i, c in self.labels.items()]
+        self.points = np.array(pts, np.float64)
+        self.points.flags.writeable = False
+
+    # -- queries ----------------------------------------------------------
+    @property
+    def visible(self) -> tuple[int, ...]:
+        """Ids drawn with non-zero opacity, ascending."""
+        return tuple(i for i, c in self.labels.items() if c[3] > 0)
+
+    def visible_words(self, max_id: int) -> np.ndarray:
+        """The visible ids in ``0..max_id`` as a bit set: ``(max_id // 64 + 1,)`` uint64.
+
+        Bit ``i % 64`` of word ``i // 64`` is set when id ``i`` is visible (matching
+        :meth:`sparsecast.volume.Volume.brick_labels`).
+        """
+        words = np.zeros(max(int(max_id), 0) // 64 + 1, np.uint64)
+        for i in self.visible:
+            if 0 <= i <= max_id:
+                words[i // 64] |= np.uint64(1) << np.uint64(i % 64)
+        return words
+
+    def refine_bricks(self, volume, brick_size: int, occupied: np.ndarray) -> np.ndarray:
+        """``occupied`` and "the brick's label set holds a visible id" (bricks of ``brick_size``).
+
+        With the volume's per-brick label sets (:meth:`Volume.brick_labels`) this is
+        exact for nearest sampling: a brick is non-empty iff a voxel of its apron
+        window holds an id the TF maps to non-zero opacity. Volumes without label
+        sets (non-integral values, too many ids) keep the range answer.
+        """
+        occ = occupied
+        sets = volume.brick_labels(brick_size)
+        if sets is None:
+            return occ
+        visible = sets.rank_words(self.visible)
+        hit = np.empty(occ.size, np.bool_)
+        any_visible(sets.words.reshape(occ.size, -1), visible, hit)
+        return occ & hit.reshape(occ.shape)
+
+    def __call__(self, values) -> np.ndarray:
+        """RGBA (straight alpha) of the nearest label id to each value, as the renderer samples."""
+        v = np.floor(np.asarray(values, dtype=np.float64) + 0.5)
+        i = np.clip(v - self.value_range[0], 0, self.table_size - 1).astype(np.int64)
+        return self.table[i]
+
+    # -- variants ---------------------------------------------------------
+    def with_range(self, value_range: tuple[float, float]) -> "LabelTransferFunction":
+        """Label ids are names, not a scale: the same TF (nothing to stretch)."""
+        return self
+
+    def with_labels(self, changes: Mapping[Any, Any]) -> "LabelTransferFunction":
+        """A copy with some labels recoloured, added, or hidden (colour ``None``)."""
+        new = dict(self.labels)
+        for k, v in changes.items():
+            i = _label_id(k, f"labels[{k!r}]")
+            if v is None:
+                new.pop(i, None)
+            else:
+                new[i] = _rgba(v, f"labels[{i}]", None)
+        if not new:
+            new = {min(self.labels): (0.0, 0.0, 0.0, 0.0)}
+        return LabelTransferFunction(new, cmap=self.cmap, unit_distance=self.unit_distance, name=self.name)
+
+    def hidden(self, ids: Iterable[Any]) -> "LabelTransferFunction":
+        """A copy with the given ids hidden (their bricks then skip)."""
+        return self.with_labels({i: None for i in ids})
+
+    # -- persistence ------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {
+            "format": LABELS_FORMAT,
+            "name": self.name,
+            "unit_distance": self.unit_distance,
+            "labels": {str(i): [float(x) for x in c] for i, c in self.labels.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict, *, source: str = "dict") -> "LabelTransferFunction":  # type: ignore[override]
+        """A label TF from the fields :meth:`to_dict` writes (errors name the field)."""
+        if not isinstance(d, dict) or d.get("format") != LABELS_FORMAT:
+            raise TransferFunctionError(f"{source}: format: expected {LABELS_FORMAT!r}")
+        labels = d.get("labels")
+        if not isinstance(labels, dict):
+            raise TransferFunctionError(f"{source}: labels: expected an object {{\"id\": [r, g, b, a], ...}}, "
+                                        f"got {type(labels).__name__}")
+        if len(labels) > MAX_LABEL_SPAN:
+            raise TransferFunctionError(f"{source}: labels: {len(labels)} entries; expected at most {MAX_LABEL_SPAN}")
+        unit = d.get("unit_distance")
+        name = d.get("name", "labels")
+        if not isinstance(name, str) or len(name) > 200:
+            raise TransferFunctionError(f"{source}: name: expected a string of at most 200 characters")
+        try:
+            return cls(labels, unit_distance=unit, name=name)
+        except TransferFunctionError as exc:
+            raise TransferFunctionError(f"{source}: {exc}") from None
+        except TypeError:
+            raise TransferFunctionError(f"{source}: unit_distance: expected a positive number or null, "
+                                        f"got {unit!r}") from None
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the label TF as JSON (atomically)."""
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_dict(), indent=2))
+        return Path(path)
+
+    def __repr__(self) -> str:
+        return (f"LabelTransferFunction(name={self.name!r}, labels={len(self.labels)}, "
+                f"visible={len(self.visible)})")
+
+
+def _distinct_colours(n: int, cmap: str) -> list[tuple[float, float, float, float]]:
+    """``n`` opaque colours from a Matplotlib colour map, cycling qualitative maps."""
+    import matplotlib  # deferred: only generated colours need it
+
+    try:
+        cm = matplotlib.colormaps[cmap]
+    except KeyError:
+        raise TransferFunctionError(f"cmap: unknown colour map {cmap!r}; expected e.g. tab10, tab20, "
+                                    "Set3 or viridis") from None
+    qualitative = getattr(cm, "N", 256) <= 32
+    if qualitative:
+        return [tuple(float(c) for c in cm(i % cm.N)) for i in range(n)]  # type: ignore[misc]
+    return [tuple(float(c) for c in cm(x)) for x in np.linspace(0.0, 1.0, max(n, 1))[:n]]  # type: ignore[misc]

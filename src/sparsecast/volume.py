@@ -18,6 +18,7 @@ from .kernels.parallel import parallel_section
 from ._util.checks import as_int, one_of, vector3
 from .errors import VolumeDataError
 from .kernels.bricks import brick_minmax
+from .kernels.label_sets import brick_label_words, count_values
 
 __all__ = ["Volume", "BrickStats", "SUPPORTED_DTYPES"]
 
@@ -66,6 +67,46 @@ class BrickStats:
     @property
     def nbytes(self) -> int:
         return int(self.vmin.nbytes + self.vmax.nbytes)
+
+
+@dataclass(frozen=True)
+class BrickLabels:
+    """Per-brick sets of the label ids a volume holds (computed once, reused by every label TF).
+
+    Attributes
+    ----------
+    brick_size : int
+        Cells per brick edge ``B`` (bricks as in :class:`BrickStats`, apron included).
+    ids : (n_ids,) int64
+        The distinct ids in the volume, ascending; an id's *rank* is its position here.
+    words : (nbz, nby, nbx, n_words) uint64
+        Bit ``r % 64`` of word ``r // 64`` is set when the id of rank ``r`` occurs in
+        the brick or its one-voxel apron.
+    build_ms : float
+        Wall time of the computation.
+    """
+
+    brick_size: int
+    ids: np.ndarray
+    words: np.ndarray
+    build_ms: float
+
+    def rank_words(self, visible) -> np.ndarray:
+        """The ids in ``visible`` that the volume holds, as a rank bit set ``(n_words,)`` uint64."""
+        out = np.zeros(self.words.shape[-1], np.uint64)
+        v = np.asarray(list(visible), np.int64)
+        r = np.searchsorted(self.ids, v)
+        present = (r < len(self.ids)) & (self.ids[np.minimum(r, len(self.ids) - 1)] == v)
+        for rank in r[present]:
+            out[rank >> 6] |= np.uint64(1) << np.uint64(rank & 63)
+        return out
+
+
+#: most distinct ids :meth:`Volume.brick_labels` tracks (64 words a brick); a volume
+#: with more is no segmentation, and its label TFs classify bricks by range only
+MAX_BRICK_LABELS = 4096
+#: largest id span (max id - min id) tracked: the id -> rank table is int32
+_MAX_ID_SPAN = 1 << 20
 
 
 class Volume:
@@ -133,6 +174,8 @@ class Volume:
         self.name = name
         self._range: tuple[float, float] | None = None
         self._bricks: dict[int, BrickStats] = {}
+        self._labels: dict[int, BrickLabels | None] = {}
+        self._ids: tuple[np.ndarray, np.ndarray] | None | bool = False  # False: not computed yet
 
     # -- basic properties -------------------------------------------------
     @property
@@ -253,6 +296,78 @@ class Volume:
         stats = BrickStats(brick_size, vmin, vmax, ms, compile_ms)
         self._bricks[brick_size] = stats
         return stats
+
+
+    def brick_labels(self, brick_size: int = 8) -> BrickLabels | None:
+        """Per-brick label-id sets with a one-voxel apron (computed once, then cached).
+
+        ``None`` when the voxels are not integral ids or hold more than
+        :data:`MAX_BRICK_LABELS` distinct values (then label TFs classify by range).
+
+        Parameters
+        ----------
+        brick_size : int, optional
+            Cells per brick edge (default 8).
+        """
+        brick_size = as_int(brick_size, "brick_size", lo=1)
+        if brick_size in self._labels:
+            return self._labels[brick_size]
+        t0 = time.perf_counter()
+        result = None
+        ids = self.label_ids()
+        if ids is not None:
+            nbz, nby, nbx = (max(1, -(-(n - 1) // brick_size)) for n in self.shape)
+            n_words = (len(ids) - 1) // 64 + 1
+            words = np.zeros((nbz, nby, nbx, n_words), np.uint64)
+            base = self.brick_labels(BASE_BRICK) if brick_size != BASE_BRICK else None
+            if base is not None and brick_size > BASE_BRICK and brick_size % BASE_BRICK == 0 \
+                    and brick_size <= max(self.shape):
+                # A coarse brick's set is the union of the base bricks' sets it covers.
+                f = brick_size // BASE_BRICK
+                fine = base.words
+                pad = [(0, s * f - n) for s, n in zip((nbz, nby, nbx), fine.shape[:3])] + [(0, 0)]
+                fine = np.pad(fine, pad).reshape(nbz, f, nby, f, nbx, f, n_words)
+                words = np.bitwise_or.reduce(np.bitwise_or.reduce(np.bitwise_or.reduce(fine, axis=5), axis=3), axis=1)
+            else:
+                lo = int(ids[0])
+                rank_of = np.zeros(int(ids[-1]) - lo + 1, np.int32)
+                rank_of[ids - lo] = np.arange(len(ids), dtype=np.int32)
+                with parallel_section():
+                    brick_label_words(self._data, lo, rank_of, brick_size, nbz, nby, nbx, words)
+            result = BrickLabels(brick_size, ids, words, (time.perf_counter() - t0) * 1e3)
+        self._labels[brick_size] = result
+        return result
+
+    def label_ids(self) -> np.ndarray | None:
+        """The distinct voxel values, ascending (int64), when the volume can be a label
+        volume: integral values spanning less than 2^20 with at most
+        :data:`MAX_BRICK_LABELS` distinct ones; else None."""
+        counts = self.label_counts()
+        return None if counts is None else counts[0]
+
+    def label_counts(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(ids, voxel counts)`` of a label volume (see :meth:`label_ids`), else None
+        (computed once, one pass over the voxels)."""
+        if self._ids is False:
+            d = self._data
+            lo, hi = self.value_range
+            found = None
+            # Ids must be integers of a span a lookup table of at most 4 MiB covers.
+            if hi - lo < _MAX_ID_SPAN and (d.dtype.kind in "ui" or _integral(d)):
+                counts = np.zeros(int(hi) - int(lo) + 1, np.int64)
+                count_values(d, int(lo), counts)
+                ids = np.flatnonzero(counts)
+                if len(ids) <= MAX_BRICK_LABELS:
+                    found = (ids + int(lo), counts[ids])
+            self._ids = found
+        return self._ids  # type: ignore[return-value]
+
+
+def _integral(d: np.ndarray) -> bool:
+    """Whether every value of a float array is an integer (chunked: no full-size temporary)."""
+    flat = d.reshape(-1)
+    step = 1 << 22
+    return all(np.array_equal(c, np.floor(c)) for c in (flat[i:i + step] for i in range(0, flat.size, step)))
 
 
 _WARM_DTYPES: set[str] = set()

@@ -28,13 +28,14 @@ from ._util.checks import fail, one_of
 from .camera import Camera
 from .errors import ParameterError
 from .index import available_indices, build_index, parse_index_spec
+from .index.auto import EDITING_INDEX, SPARSE_INDEX
 from .index.warm import tiny_volume
 from .render import render
 from .transfer import TransferFunction
 from .volume import SUPPORTED_DTYPES
 
 __all__ = ["compile_kernels", "plan", "CompileStep", "CompileReport", "GROUPS", "DEFAULT_DTYPES",
-           "APPROXIMATE_MODES"]
+           "APPROXIMATE_MODES", "LABEL_INDICES"]
 
 #: the kernel groups, in plan order (``sparsecast compile --only``)
 GROUPS = ("volume", "surface", "particles")
@@ -46,6 +47,11 @@ DEFAULT_DTYPES = ("uint8", "uint16", "float32")
 #: BIH build options beyond the default mode: each approximate mode has its own
 #: record type and integrator, hence its own driver specialisation
 APPROXIMATE_MODES = ("bih:mode=single-sample", "bih:mode=multi-sample")
+
+#: the indices ``index="auto"`` picks from (naive, the sparse and the editing index):
+#: label volumes (nearest sampling, a driver specialisation of its own) are compiled for
+#: these by default, for the integer dtypes; ``indices=`` names others
+LABEL_INDICES = ("naive", SPARSE_INDEX, EDITING_INDEX)
 
 #: pixels per side of a warm-up frame
 FRAME = 16
@@ -153,8 +159,9 @@ def plan(
     Returns
     -------
     list of CompileStep
-        Volume steps: per dtype, the brick statistics, then one per index spec;
-        then the surface steps, then the particles step.
+        Volume steps: per dtype, the brick statistics, then one per index spec, then
+        for integer dtypes a label TF per exact index of :data:`LABEL_INDICES` (or of
+        ``indices``); then the surface steps, then the particles step.
 
     Raises
     ------
@@ -166,11 +173,16 @@ def plan(
     steps: list[CompileStep] = []
     if "volume" in chosen:
         specs = _index_specs(indices, names[1])
+        label_specs = [s for s in (specs if indices is not None else LABEL_INDICES)
+                       if s in specs and parse_index_spec(s)[1].get("mode", "ess") == "ess"]
         for dtype in _dtypes(dtypes, names[0]):
             steps.append(CompileStep("volume", f"volume {dtype}: brick statistics",
                                      _bind(_brick_stats, dtype)))
             steps.extend(CompileStep("volume", f"volume {dtype} {spec}: build, frame", _bind(_volume, dtype, spec))
                          for spec in specs)
+            if dtype.kind in "iu":  # label volumes: integer ids, nearest sampling
+                steps.extend(CompileStep("volume", f"volume {dtype} labels {spec}: build, frame",
+                                         _bind(_labels, dtype, spec)) for spec in label_specs)
     if "surface" in chosen:
         steps += [
             CompileStep("surface", "surface BVH: build", _bvh_build),
@@ -253,6 +265,14 @@ def _volume(dtype: np.dtype, spec: str) -> None:
     idx = build_index(vol, tf, name, **options)
     render(vol, tf, cam, FRAME, FRAME, index=idx)
     render(vol, tf, cam, FRAME, FRAME, index=idx, shading=True)  # the renderer's shaded path
+
+
+def _labels(dtype: np.dtype, spec: str) -> None:
+    tf = TransferFunction.labels([1, 2])
+    vol = tiny_volume(dtype, (0.0, 2.0), labels=(1, 2))
+    name, options = parse_index_spec(spec)
+    idx = build_index(vol, tf, name, **options)
+    render(vol, tf, Camera.orbit(vol, 30, 20), FRAME, FRAME, index=idx)
 
 
 def _bvh_build() -> None:

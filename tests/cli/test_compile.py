@@ -13,7 +13,7 @@ import pytest
 
 from cli_runner import run_cli
 from sparsecast import available_indices, kernel_cache
-from sparsecast.warmup import APPROXIMATE_MODES, DEFAULT_DTYPES, GROUPS, plan
+from sparsecast.warmup import APPROXIMATE_MODES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, plan
 
 
 def test_full_plan_covers_every_index_dtype_and_group():
@@ -26,8 +26,12 @@ def test_full_plan_covers_every_index_dtype_and_group():
         assert f"volume {dtype}: brick statistics" in labels
         for spec in specs:
             assert f"volume {dtype} {spec}: build, frame" in labels
+        if dtype.startswith(("uint", "int")):
+            for spec in LABEL_INDICES:
+                assert f"volume {dtype} labels {spec}: build, frame" in labels
     volume = [s for s in steps if s.group == "volume"]
-    assert len(volume) == len(DEFAULT_DTYPES) * (1 + len(specs))
+    integer = [d for d in DEFAULT_DTYPES if d.startswith(("uint", "int"))]
+    assert len(volume) == len(DEFAULT_DTYPES) * (1 + len(specs)) + len(integer) * len(LABEL_INDICES)
     assert {s.label for s in plan(dtypes="all") if s.label.endswith("brick statistics")} == {
         f"volume {d}: brick statistics" for d in ("uint8", "uint16", "int16", "float32", "float64")}
 
@@ -35,6 +39,11 @@ def test_full_plan_covers_every_index_dtype_and_group():
 def test_plan_subsets():
     steps = plan(dtypes=["float32"], indices=["grid-pc:cell=8"], groups=["volume"])
     assert [s.label for s in steps] == ["volume float32: brick statistics", "volume float32 grid-pc:cell=8: build, frame"]
+    # Label TFs (nearest sampling) for integer dtypes and the exact indices asked for.
+    steps = plan(dtypes=["uint16"], indices=["lbvh", "bih:mode=multi-sample"], groups=["volume"])
+    assert [s.label for s in steps] == ["volume uint16: brick statistics", "volume uint16 lbvh: build, frame",
+                                        "volume uint16 bih:mode=multi-sample: build, frame",
+                                        "volume uint16 labels lbvh: build, frame"]
     assert {s.group for s in plan(groups=["surface", "particles"])} == {"surface", "particles"}
 
 

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import sparsecast as sc
-from synthetic import sparse_volume
+from synthetic import label_volume, sparse_volume
 from sparsecast.index.registry import _INDICES
 
 import bbox_index  # noqa: F401  (registers "test-bbox": a new index gets every test below)
@@ -243,3 +243,52 @@ def test_ramp_from_zero_skips_the_zero_background(name, opts):
     cam = sc.Camera.orbit(vol, 35, 25)
     img, ref = assert_same_as_naive(vol, tf, cam, 32, 32, name, opts, ert=1.0)
     assert img.stats["samples"] < ref.stats["samples"], f"{name} {opts} skipped nothing"
+
+
+# -- issue 19, item 1: label volumes, nearest sampling ----------------------------------
+@st.composite
+def label_scenes(draw):
+    """Label boxes with faces on or beside brick faces; a random subset of ids shown."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    shape = tuple(draw(st.integers(2, 34)) for _ in range(3))
+    n = draw(st.integers(1, 7))
+    vol = label_volume(rng, shape, n, "uint8",  # (one dtype: each compiles every index's nearest driver)
+                       brick_aligned=draw(st.booleans()), spacing=(1.0, 0.8, 1.25))
+    shown = draw(st.lists(st.integers(1, n), min_size=1, max_size=n, unique=True))
+    tf = sc.TransferFunction.labels({i: (0.2 + 0.1 * i % 0.8, 0.5, 1.0 - 0.1 * i, draw(st.sampled_from([0.3, 1.0])))
+                                     for i in shown})
+    cams = _cameras(vol)
+    cam = cams[draw(st.sampled_from(sorted(cams)))]
+    return vol, tf, cam
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@settings(max_examples=12, deadline=None)
+@given(data=label_scenes())
+def test_property_labels_equal_naive(name, opts, data):
+    vol, tf, cam = data
+    assert_same_as_naive(vol, tf, cam, 12, 10, name, opts, dt=0.5, ert=1.0)
+
+
+#: indices that classify by value range during traversal (min-max) or not at all:
+#: hidden labels skip there only where the range of a cell excludes every visible id
+RANGE_ONLY = {"grid-mm", "hybrid-mm", "test-bbox"}
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+def test_hidden_labels_skip(name, opts):
+    """Hiding the label that fills most bricks skips its bricks (and stays exact): the
+    per-brick label sets see that a brick of {0, 5} has nothing visible once 5 is hidden,
+    although its range [0, 5] spans the visible id 2."""
+    data = np.zeros((64, 64, 64), np.uint8)
+    data[4:60, 4:60, 4:30] = 5   # a big slab, hidden in the second image
+    data[50:54, 50:54, 50:54] = 2  # a small visible box
+    vol = sc.Volume(data)
+    cam = sc.Camera.orbit(vol, 30, 20)
+    shown = sc.TransferFunction.labels({2: (1, 0, 0, 1), 5: (0, 0, 1, 0.4)})
+    img_all, _ = assert_same_as_naive(vol, shown, cam, 24, 24, name, opts, ert=1.0)
+    img_hidden, _ = assert_same_as_naive(vol, shown.hidden([5]), cam, 24, 24, name, opts, ert=1.0)
+    if name in RANGE_ONLY:
+        assert img_hidden.stats["samples"] <= img_all.stats["samples"]
+    else:
+        assert img_hidden.stats["samples"] < 0.5 * img_all.stats["samples"], f"{name} {opts}"

@@ -60,3 +60,23 @@ def test_the_timed_build_compiles_nothing_after_the_warm_up(monkeypatch, name):
     before = kernel_cache.compile_seconds()
     index_class(name)(vol, tf)
     assert kernel_cache.compile_seconds() == before
+
+
+def test_label_tf_warms_on_a_label_volume(monkeypatch):
+    """A label TF classifies bricks by their id sets: the warm-up volume holds its visible
+    ids, so the label kernels compile there, not in the timed build."""
+    from sparsecast import kernel_cache
+    from sparsecast.index.registry import index_class
+
+    vol = tiny_volume(np.dtype("uint8"), (0.0, 9.0), labels=(4, 9))
+    assert set(np.unique(vol.data).tolist()) == {0, 4, 9}
+    monkeypatch.setattr(warm, "_WARM", set())
+    data = np.zeros((30, 30, 30), np.uint8)
+    data[3:12, 5:20, 4:9] = 7
+    data[15:25, 2:8, 10:28] = 3
+    real = sc.Volume(data)
+    tf = sc.TransferFunction.labels([3, 7])
+    warm.warm_build(index_class("kdtree-deep"), real, tf, {})
+    before = kernel_cache.compile_seconds()
+    idx = sc.build_index(real, tf, "kdtree-deep")
+    assert kernel_cache.compile_seconds() == before and idx.compile_ms == 0.0

@@ -60,7 +60,8 @@ FileArg = Annotated[
     typer.Argument(help="Volume file (.nrrd .nhdr .nii .nii.gz .raw .npy .tif); omit for the built-in demo."),
 ]
 TfOpt = Annotated[
-    str, typer.Option("--tf", help="Preset name (see `sparsecast info --presets`) or a TF .json file.")
+    str, typer.Option("--tf", help="Preset name (see `sparsecast info --presets`), a TF .json file (a label "
+                                   "file too), or for label volumes 'labels' (every id but 0) or 'labels:ID,ID,...'.")
 ]
 TfRangeOpt = Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans (default: the volume's).")]
 ThresholdOpt = Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction of the range.")]

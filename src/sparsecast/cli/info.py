@@ -53,7 +53,7 @@ def info(
     c0 = compile_seconds()
     bricks = vol.brick_stats(brick_size)  # its build_ms excludes first-use compilation
     t0 = time.perf_counter()
-    nonempty = tfn.classify(bricks.vmin, bricks.vmax)
+    nonempty = tfn.classify_bricks(vol, brick_size)
     classify_ms = (time.perf_counter() - t0) * 1e3
     note = compile_note(compile_seconds() - c0)
     nx, ny, nz = vol.dims
@@ -67,6 +67,26 @@ def info(
         f"for TF {tfn.name!r} over [{tfn.value_range[0]:g}, {tfn.value_range[1]:g}] "
         f"(brick stats {bricks.build_ms:.1f} ms, classify {classify_ms:.3f} ms" + (f"; {note})" if note else ")")
     )
+    if tfn.sampling == "nearest" or (file is not None and vol.dtype.kind in "ui" and vol.value_range[1] < 256
+                                     and _few_ids(vol)):
+        out.print("  labels    " + label_summary(vol, tfn))
+
+
+def _few_ids(vol, most: int = 64) -> bool:
+    ids = vol.label_ids()
+    return ids is not None and len(ids) <= most
+
+
+def label_summary(vol, tf) -> str:
+    """``N ids: id (voxels[, shown]), ...`` for a label volume (at most 24 listed)."""
+    counts = vol.label_counts()
+    if counts is None:
+        return "none (values are not integer ids, or more than 4096 distinct values)"
+    ids, n = counts
+    shown = set(getattr(tf, "visible", ()))
+    parts = [f"{int(i)} ({int(c)} voxels{', shown' if int(i) in shown else ''})" for i, c in zip(ids[:24], n[:24])]
+    more = f", ... {len(ids) - 24} more" if len(ids) > 24 else ""
+    return f"{len(ids)} ids: " + ", ".join(parts) + more
 
 
 def histogram_sketch(data: np.ndarray, bins: int = 48) -> str:

@@ -42,12 +42,48 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
 
 
 def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):
-    """A preset over the volume's range (or ``tf_range``), or a TF ``.json`` file
-    (re-ranged only when ``tf_range`` is given)."""
+    """A preset over the volume's range (or ``tf_range``), a TF ``.json`` file
+    (re-ranged only when ``tf_range`` is given; a label file is used as it is), or a
+    label TF: ``labels`` (every id the volume holds but 0, distinct colours) or
+    ``labels:1,4,7`` (those ids)."""
     from ..transfer import TransferFunction
 
+    if spec.lower() == "labels" or spec.lower().startswith("labels:"):
+        return label_tf(spec, vol)
     value_range = parse_pair(tf_range, "--tf-range") if tf_range else vol.value_range
     if spec.lower().endswith(".json"):
         tf = TransferFunction.load(spec)
         return tf.with_range(value_range) if tf_range else tf
     return TransferFunction.preset(spec, value_range, threshold=threshold)
+
+
+def label_tf(spec: str, vol):
+    """``--tf labels[:ID,ID,...]``: distinct colours for the ids of a label volume."""
+    from ..transfer import TransferFunction
+
+    ids = vol.label_ids()
+    if ids is None:
+        raise ParameterError(
+            f"--tf {spec}: {vol.name} is not a label volume (expected integer ids, at most 4096 distinct "
+            f"values); its values span [{vol.value_range[0]:g}, {vol.value_range[1]:g}]"
+        )
+    _, _, listed = spec.partition(":")
+    if listed.strip():
+        try:
+            shown = [int(x, 10) for x in listed.split(",") if x.strip()]
+        except ValueError:
+            raise ParameterError(f"--tf {spec}: expected labels:ID,ID,... with integer ids") from None
+        missing = sorted(set(shown) - set(ids.tolist()))
+        if missing:
+            raise ParameterError(
+                f"--tf {spec}: id(s) {', '.join(map(str, missing))} do not occur in {vol.name}; it holds "
+                f"{_id_list(ids)}"
+            )
+    else:
+        shown = [int(i) for i in ids if i != 0] or [int(ids[0])]
+    return TransferFunction.labels(shown, name=spec)
+
+
+def _id_list(ids, limit: int = 20) -> str:
+    text = ", ".join(str(int(i)) for i in ids[:limit])
+    return text + (f", ... ({len(ids)} ids)" if len(ids) > limit else "")

@@ -21,7 +21,7 @@ processes; a closure factory would recompile in every new process):
     prune subtrees against it (the LBVH does). Intervals may overlap, touch
     or extend past ``[t_lo, t_hi]``; the driver merges touching ones and
     clamps lattice indices to the clip.
-``integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,``
+``integrate(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,``
 ``ray, wdir, t0, t1, k_next, k_max, acc)``
     Composite one interval ``[t0, t1]`` onto the premultiplied ``acc = (r, g, b, a)``
     and return ``(r, g, b, a, k_next, n_samples, n_nonempty)``; ``wdir`` is the unit
@@ -72,7 +72,7 @@ def next_interval(record, scratch, ray, state, t_covered):  # pragma: no cover
     raise NotImplementedError("next_interval is only callable from jitted code")
 
 
-def integrate(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
+def integrate(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
               ray, wdir, t0, t1, k_next, k_max, acc):  # pragma: no cover
     """Composite one interval (see the module docstring)."""
     raise NotImplementedError("integrate is only callable from jitted code")
@@ -124,18 +124,18 @@ def _no_scratch(record):
 
 
 @overload(integrate, jit_options={"error_model": "numpy"})
-def _integrate_lattice(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+def _integrate_lattice(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
                        shading, ray, wdir, t0, t1, k_next, k_max, acc):
     if record_class(record) is None or not _lattice(record):
         return None
 
-    def impl(record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+    def impl(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
              shading, ray, wdir, t0, t1, k_next, k_max, acc):
         ox, oy, oz, dx, dy, dz = ray
         wdx, wdy, wdz = wdir
         r, g, b, a = acc
         return march_interval(
-            flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+            sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
             wdx, wdy, wdz, inv_spacing, dt, t0, t1, k_next, k_max, r, g, b, a, ert, shading,
         )
 

@@ -29,8 +29,13 @@ TINY = 25
 _WARM: set[tuple] = set()
 
 
-def tiny_volume(dtype: np.dtype, value_range: tuple[float, float], size: int = TINY) -> Volume:
+def tiny_volume(dtype: np.dtype, value_range: tuple[float, float], size: int = TINY,
+                labels: tuple[int, ...] | None = None) -> Volume:
     """A small deterministic volume of ``dtype`` spanning ``value_range``: two blobs in empty space.
+
+    With ``labels``, a label volume instead: the blobs hold the first two of these ids
+    (the TF's visible ones, so label TFs find bricks to keep) on a background of the
+    lowest value, few distinct values as label volumes have.
 
     Parameters
     ----------
@@ -41,6 +46,8 @@ def tiny_volume(dtype: np.dtype, value_range: tuple[float, float], size: int = T
         clipped to what ``dtype`` holds.
     size : int
         Voxels per edge.
+    labels : tuple of int, optional
+        Ids to fill the blobs with (a label volume).
 
     Returns
     -------
@@ -56,6 +63,11 @@ def tiny_volume(dtype: np.dtype, value_range: tuple[float, float], size: int = T
     field[field < 0.05] = 0.0  # exact empty space, as the indices skip it
     lo, hi = value_range
     values = lo + (hi - lo) * field
+    if labels:
+        ids = [float(i) for i in labels[:2]] * (2 // min(len(labels), 2))
+        values = np.full_like(field, lo)
+        values[(field > 0) & (x < 0.5)] = ids[0]
+        values[(field > 0) & (x >= 0.5)] = ids[1]
     if dtype.kind in "iu":
         info = np.iinfo(dtype)
         values = np.clip(np.rint(values), info.min, info.max)
@@ -69,12 +81,15 @@ def warm_build(cls: type[SpatialIndex], volume: Volume, tf: TransferFunction, op
     options are passed as given (they select kernels: ``bih:mode=...``); a
     failure on the tiny volume is left for the real build to report.
     """
-    key = (cls, volume.dtype.str, repr(sorted(options.items())))
+    key = (cls, volume.dtype.str, type(tf), repr(sorted(options.items())))
     if key in _WARM:
         return 0.0
     t0 = time.perf_counter()
     try:
-        cls(tiny_volume(volume.dtype, tf.value_range), tf, **options)
+        # A label TF (nearest sampling) classifies bricks by their label sets: a tiny
+        # label volume of its visible ids runs those kernels too.
+        labels = tuple(getattr(tf, "visible", ())) if getattr(tf, "sampling", "trilinear") != "trilinear" else None
+        cls(tiny_volume(volume.dtype, tf.value_range, labels=labels), tf, **options)
     except Exception:  # noqa: BLE001 - bad options etc.: the real build raises the user-facing error
         return (time.perf_counter() - t0) * 1e3
     _WARM.add(key)

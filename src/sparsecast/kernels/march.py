@@ -12,7 +12,8 @@ from __future__ import annotations
 from numba import njit
 
 from .ray import lattice_range
-from .sample import gradient, trilinear
+from .sample import gradient
+from .sampler import sample
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 
@@ -32,7 +33,7 @@ def _shade_sample(flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing
 
 @njit(cache=True, inline="always")
 def march_segment(
-    flat, nx, ny, nz, table, v_lo, scale,
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
     wdx, wdy, wdz, inv_spacing,
     dt, k_begin, k_end,
@@ -43,6 +44,8 @@ def march_segment(
 
     Parameters
     ----------
+    sampler : Trilinear or Nearest
+        How a sample reads the voxels (:mod:`.sampler`; chosen at compile time).
     flat, nx, ny, nz
         Voxels as a 1-D view of the C-ordered ``(nz, ny, nx)`` array, and its dims
         (see :func:`.sample.trilinear`; make the view once per tile, not per ray).
@@ -85,7 +88,7 @@ def march_segment(
         x = ox + t * dx
         y = oy + t * dy
         z = oz + t * dz
-        v = trilinear(flat, nx, ny, nz, x, y, z)
+        v = sample(sampler, flat, nx, ny, nz, x, y, z)
         i, f, a = tf_alpha(table, v, v_lo, scale)
         n_samples += 1
         if a > 0.0:
@@ -106,7 +109,7 @@ def march_segment(
 
 @njit(cache=True, inline="always")
 def march_interval(
-    flat, nx, ny, nz, table, v_lo, scale,
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
     wdx, wdy, wdz, inv_spacing,
     dt, t0, t1, k_next, k_max,
@@ -131,6 +134,6 @@ def march_interval(
     if k0 > k1:
         return acc_r, acc_g, acc_b, acc_a, k_next, 0, 0
     return march_segment(
-        flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
+        sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
         inv_spacing, dt, k0, k1, acc_r, acc_g, acc_b, acc_a, ert, shading,
     )

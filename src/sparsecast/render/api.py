@@ -13,6 +13,7 @@ from ..camera import Camera
 from ..errors import ParameterError
 from ..image import Image
 from ..index import SpatialIndex, View, build_index
+from ..kernels.sampler import sampler_for
 from ..transfer import TransferFunction
 from ..volume import Volume
 from .driver import tiles_kernel
@@ -184,6 +185,12 @@ def render(
     else:
         raise ParameterError(f"index: expected an index name or a SpatialIndex, got {type(index).__name__}")
 
+    if tf.sampling != "trilinear" and not index.exact:
+        raise ParameterError(
+            f"index: {index.name!r} is approximate and samples a resampled density; a "
+            f"{type(tf).__name__} needs {tf.sampling} sampling of the voxels: use an exact index "
+            "(e.g. index='auto')"
+        )
     unit = tf.unit_distance if tf.unit_distance is not None else min_spacing
     origin = np.ascontiguousarray(volume.origin, dtype=np.float64)
     inv_spacing = np.ascontiguousarray(1.0 / volume.spacing, dtype=np.float64)
@@ -195,6 +202,7 @@ def render(
         v_lo=float(tf.value_range[0]), scale=float(tf.scale),
         clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
         any_open=bool(open_lo.any() or open_hi.any()), planes=_planes(volume, clip_planes),
+        sampler=sampler_for(tf.sampling),
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
     data = volume.data

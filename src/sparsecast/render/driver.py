@@ -77,6 +77,7 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     origin = frame.origin
     inv_spacing = frame.inv_spacing
     table = frame.table
+    sampler = frame.sampler
     shading = frame.shading
     background = frame.background
     v_lo = frame.v_lo
@@ -153,7 +154,7 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                         go = s0 <= s1
                     if go:
                         r, g, b, a, k_next, ns, nne = integrate(
-                            record, scratch, state, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
+                            record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
                             ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_hi, (r, g, b, a),
                         )
                         n_samples += ns

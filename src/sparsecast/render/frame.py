@@ -6,6 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..kernels.sampler import Nearest, Trilinear
+
 __all__ = ["Frame"]
 
 
@@ -44,6 +46,9 @@ class Frame(NamedTuple):
         Whether any clip face is open.
     planes : (m, 4) float64
         Index-space clip half-spaces ``n . x >= c`` as rows ``(nx, ny, nz, c)``; m may be 0.
+    sampler : Trilinear or Nearest
+        How samples read the voxels (:mod:`sparsecast.kernels.sampler`); its type
+        selects the compiled marching loop.
     """
 
     cam: np.ndarray
@@ -66,3 +71,4 @@ class Frame(NamedTuple):
     open_hi: np.ndarray
     any_open: bool
     planes: np.ndarray
+    sampler: Trilinear | Nearest

@@ -130,7 +130,7 @@ class PreclassifiedGrid(_CellGrid):
     def __init__(self, volume, tf, cell: int = 16) -> None:
         super().__init__(volume, tf, cell)
         t0 = time.perf_counter()
-        self.occupied = tf.classify(self.cell_min, self.cell_max).astype(np.uint8)
+        self.occupied = tf.classify_bricks(volume, self.cell).astype(np.uint8)
         self.build_phases["classify"] = (time.perf_counter() - t0) * 1e3
         self.nbytes = int(self.occupied.nbytes)
 

@@ -71,7 +71,7 @@ class CellOccupancy:
         ncz, ncy, ncx = (max(n - 1, 1) for n in (nz, ny, nx))
         t0 = time.perf_counter()
         stats = volume.brick_stats(occupancy.CLASSIFY_BRICK)  # cached per volume
-        flags = tf.classify(stats.vmin, stats.vmax)  # 8^3 bricks that may hold occupied cells
+        flags = tf.classify_bricks(volume, occupancy.CLASSIFY_BRICK)  # 8^3 bricks that may hold occupied cells
         bricks = np.flatnonzero(flags)
         bmap = np.full(flags.shape, -1, np.int32)
         bmap.ravel()[bricks] = np.arange(bricks.size, dtype=np.int32)

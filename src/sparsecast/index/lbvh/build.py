@@ -85,11 +85,10 @@ def brick_grid_shape(shape, brick: int) -> tuple[int, int, int]:
 def vote_bricks(volume, tf, brick: int) -> np.ndarray:
     """Brick occupancy (flat bool) from the volume's cached brick min/max: O(#bricks).
 
-    The same range query as ``tf.classify(stats.vmin, stats.vmax)``.
+    ``tf.classify_bricks(volume, brick)``: the TF range query on the brick min/max
+    (refined by per-brick label sets for a label TF).
     """
-    stats = volume.brick_stats(brick)
-    return K.classify_bricks(tf.prefix, float(tf.value_range[0]), tf.scale,
-                             stats.vmin.ravel(), stats.vmax.ravel())
+    return tf.classify_bricks(volume, brick).ravel()
 
 
 def vote_voxels(volume, tf, brick: int) -> np.ndarray:
@@ -100,13 +99,14 @@ def vote_voxels(volume, tf, brick: int) -> np.ndarray:
     classified with the TF range query, so the answer equals :func:`vote_bricks`.
     (Voting "visible" per voxel value alone would not be conservative: a sample
     interpolated between two voxels can hit a narrow TF peak that neither value
-    does.)
+    does.) A label TF refines it with the volume's per-brick label sets, as there.
     """
     nbz, nby, nbx = brick_grid_shape(volume.shape, brick)
     vmin = np.empty((nbz, nby, nbx), np.float64)
     vmax = np.empty((nbz, nby, nbx), np.float64)
     brick_minmax(volume.data, brick, nbz, nby, nbx, vmin, vmax)
-    return K.classify_bricks(tf.prefix, float(tf.value_range[0]), tf.scale, vmin.ravel(), vmax.ravel())
+    occ = K.classify_bricks(tf.prefix, float(tf.value_range[0]), tf.scale, vmin.ravel(), vmax.ravel())
+    return tf.refine_bricks(volume, brick, occ.reshape(nbz, nby, nbx)).ravel()
 
 
 @register_index
