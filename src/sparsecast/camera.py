@@ -6,7 +6,10 @@ Numba ray generator (:func:`sparsecast.kernels.camera.primary_ray`) reads.
 
 Orbit convention: +z is up on screen. At azimuth 0 and elevation 0 the camera looks
 along +y, so +x points right; azimuth turns the camera counter-clockwise about +z
-(seen from above) and elevation raises it towards +z.
+(seen from above) and elevation raises it towards +z. ``up=`` and ``view=`` rotate
+that frame (:mod:`sparsecast.axes`): the angles are then taken about another world axis,
+or from a named anatomical view. The camera moves, the data never does, so every index
+stays exact.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from typing import Literal
 
 import numpy as np
 
+from .axes import is_mirrored, up_frame, view_frame
 from .errors import ParameterError
 
 __all__ = ["Camera", "Projection"]
@@ -58,6 +62,11 @@ class Camera:
         Perspective only: vertical field of view in degrees, in (0, 180).
     ortho_height : float
         Orthographic only: world-space height of the view.
+    mirror : bool
+        Flip the image left-right (screen right is ``up x forward``, not ``forward x up``):
+        how a left-handed world looks right. Voxel axes whose anatomical codes are
+        left-handed (LAS, a flipped NRRD axis) make the world a mirror image of the patient,
+        and no rotation undoes that; named views set it (:meth:`orbit`).
     """
 
     eye: np.ndarray
@@ -66,6 +75,7 @@ class Camera:
     projection: Projection = "perspective"
     fov_y: float = 30.0
     ortho_height: float = 1.0
+    mirror: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "eye", _vec3(self.eye, "eye"))
@@ -92,9 +102,10 @@ class Camera:
         projection: Projection = "perspective",
         fov_y: float = 30.0,
         ortho_height: float = 1.0,
+        mirror: bool = False,
     ) -> "Camera":
         """A camera at ``eye`` looking at ``target``."""
-        return cls(eye, target, up, projection, fov_y, ortho_height)
+        return cls(eye, target, up, projection, fov_y, ortho_height, bool(mirror))
 
     @classmethod
     def orbit(
@@ -108,15 +119,19 @@ class Camera:
         zoom: float = 1.0,
         distance: float | None = None,
         pan: tuple[float, float] = (0.0, 0.0),
+        up: str | None = None,
+        view: str | None = None,
     ) -> "Camera":
         """A camera on a sphere around ``volume`` that frames it (fit-to-volume).
 
         Parameters
         ----------
         volume : Volume
-            The volume to frame; any object with ``center`` and ``diagonal`` works.
+            The volume to frame; any object with ``center`` and ``diagonal`` works
+            (and ``orientation`` for ``view``).
         azimuth, elevation : float
-            Angles in degrees (see the module docstring for the convention).
+            Angles in degrees (see the module docstring for the convention), in the
+            frame that ``up`` or ``view`` sets.
         projection : {"orthographic", "perspective"}
         fov_y : float
             Perspective vertical field of view in degrees.
@@ -127,20 +142,45 @@ class Camera:
         pan : (float, float)
             Shift of the view (eye and target together) to the right and up, in
             units of the bounding-sphere radius.
+        up : {"x", "y", "z", "-x", "-y", "-z"}, optional
+            World axis that is screen-up at elevation 0; azimuth turns about it
+            (default ``"z"``; :func:`sparsecast.axes.up_frame` says where azimuth 0 looks).
+        view : {"anterior", "posterior", "left", "right", "superior", "inferior"}, optional
+            Look at the patient from that side, superior up (anterior up for superior /
+            inferior); ``azimuth`` / ``elevation`` then orbit away from it. Needs
+            ``volume.orientation`` (axis codes); excludes ``up``. A left-handed
+            orientation (LAS) gives a ``mirror`` camera, so the patient's left is where it
+            belongs (on screen right seen from the front).
+
+        Raises
+        ------
+        ParameterError
+            Bad angles, zoom, distance, pan, ``up`` or ``view``; ``up`` and ``view``
+            both given; ``view`` for a volume without orientation (naming it).
         """
         if not (np.isfinite(zoom) and zoom > 0):
             raise ParameterError(f"zoom: expected a positive number, got {zoom}")
         for nm, ang in (("azimuth", azimuth), ("elevation", elevation)):
             if not np.isfinite(ang):
                 raise ParameterError(f"{nm}: expected a finite angle in degrees, got {ang}")
+        mirror = False
+        if view is not None:
+            if up is not None:
+                raise ParameterError(f"up: a view ({view!r}) sets the up direction itself; give up or view, not both")
+            orientation = getattr(volume, "orientation", None)
+            label = getattr(volume, "name", None) or getattr(volume, "source", None) or type(volume).__name__
+            frame = view_frame(orientation, view, repr(label))
+            mirror = is_mirrored(orientation)
+        else:
+            frame = up_frame("z" if up is None else up)
         center = np.asarray(volume.center, dtype=np.float64)
         radius = max(0.5 * float(volume.diagonal), 1e-6)
         az, el = np.radians(azimuth), np.radians(elevation)
-        # Direction from the centre to the eye.
-        to_eye = np.array([-np.sin(az) * np.cos(el), -np.cos(az) * np.cos(el), np.sin(el)])
+        # Direction from the centre to the eye, in the orbit frame (+z up), then in the world.
+        to_eye = frame @ np.array([-np.sin(az) * np.cos(el), -np.cos(az) * np.cos(el), np.sin(el)])
         # Screen-up is d(to_eye)/d(elevation): orthogonal to the view direction for
-        # every angle, +z at the horizon and continuous through the poles.
-        up = np.array([np.sin(az) * np.sin(el), np.cos(az) * np.sin(el), np.cos(el)])
+        # every angle, the frame's up at the horizon and continuous through the poles.
+        up = frame @ np.array([np.sin(az) * np.sin(el), np.cos(az) * np.sin(el), np.cos(el)])
         if distance is None:
             if projection == "perspective":
                 distance = radius / np.sin(np.radians(fov_y) / 2.0) / zoom
@@ -151,19 +191,20 @@ class Camera:
         pan_arr = np.asarray(pan, dtype=np.float64)
         if pan_arr.shape != (2,) or not np.all(np.isfinite(pan_arr)):
             raise ParameterError(f"pan: expected two finite numbers (right, up), got {pan!r}")
-        right = np.cross(-to_eye, up)
+        right = np.cross(-to_eye, up) * (-1.0 if mirror else 1.0)  # screen right
         right /= np.linalg.norm(right)
         target = center + radius * (pan_arr[0] * right + pan_arr[1] * up)
         eye = target + distance * to_eye
-        return cls(eye, target, up, projection, fov_y, ortho_height=2.0 * radius / zoom)
+        return cls(eye, target, up, projection, fov_y, ortho_height=2.0 * radius / zoom, mirror=mirror)
 
     # -- derived frame ----------------------------------------------------
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Orthonormal ``(forward, right, up)`` vectors."""
+        """Orthonormal ``(forward, right, up)`` vectors; ``right`` is the screen's right
+        (``up x forward`` for a ``mirror`` camera, a left-handed basis)."""
         forward = _unit(self.target - self.eye, "target - eye")
         right = _unit(np.cross(forward, self.up), "forward x up")
         up = np.cross(right, forward)
-        return forward, right, up
+        return forward, (-right if self.mirror else right), up
 
     def ray_params(self, width: int, height: int) -> np.ndarray:
         """Flat float64 array read by :func:`kernels.camera.primary_ray`.

@@ -3,7 +3,9 @@
 Index space follows VTK image data / OSPRay structured volumes: voxel ``(i, j, k)``
 is the sample at point ``(x=i, y=j, z=k)``; the domain is the box
 ``[0, nx-1] x [0, ny-1] x [0, nz-1]`` and ``world = origin + spacing * index``.
-Arrays are C-ordered with shape ``(nz, ny, nx)`` and indexed ``[k, j, i]``.
+Arrays are C-ordered with shape ``(nz, ny, nx)`` and indexed ``[k, j, i]``. World axes
+are index axes (no direction cosines), so a volume's anatomical ``orientation`` (axis
+codes, see :mod:`sparsecast.axes`) names where world +x, +y, +z point in the patient.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 
 from .kernels.parallel import parallel_section
 from ._util.checks import as_int, one_of, vector3
+from .axes import Orientation, check_orientation
 from .errors import VolumeDataError
 from .kernels.bricks import brick_minmax
 from .kernels.label_sets import brick_label_words, count_values
@@ -128,14 +131,24 @@ class Volume:
         What to do with NaN/Inf in float data: ``"raise"`` (default) rejects the
         volume; ``"replace"`` substitutes the finite minimum for NaN and -Inf and the
         finite maximum for +Inf.
+    orientation : str or sequence of 3 str, optional
+        Anatomical axis codes of ``+i, +j, +k`` (``"RAS"``, ``("L", "P", "S")``): where
+        each voxel axis points in the patient. Default None (not anatomical, or not
+        known); the readers fill it from NRRD ``space`` and NIfTI sform/qform. Named
+        views (``Camera.orbit(vol, view="anterior")``) need it.
+
+    Attributes
+    ----------
+    orientation : tuple of 3 str or None
+        The axis codes, upper case.
 
     Raises
     ------
     VolumeDataError
         Wrong number of dimensions, zero-size axis, unsupported dtype or NaN/Inf.
     ParameterError
-        Spacing or origin not one or three finite numbers (spacing > 0), or an unknown
-        ``nonfinite`` policy.
+        Spacing or origin not one or three finite numbers (spacing > 0), an unknown
+        ``nonfinite`` policy, or orientation not three axis codes (one of L/R, A/P, S/I).
 
     Examples
     --------
@@ -153,6 +166,7 @@ class Volume:
         *,
         name: str = "volume",
         nonfinite: NonFinitePolicy = "raise",
+        orientation: str | Orientation | None = None,
     ) -> None:
         one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
         arr = np.asarray(data)
@@ -172,6 +186,7 @@ class Volume:
         self.spacing = vector3(spacing, "spacing", positive=True)
         self.origin = vector3(origin, "origin")
         self.name = name
+        self.orientation: Orientation | None = check_orientation(orientation)
         self._range: tuple[float, float] | None = None
         self._bricks: dict[int, BrickStats] = {}
         self._labels: dict[int, BrickLabels | None] = {}
@@ -257,7 +272,8 @@ class Volume:
         nx, ny, nz = self.dims
         return (
             f"Volume(name={self.name!r}, dims={nx}x{ny}x{nz}, dtype={self.dtype}, "
-            f"spacing={tuple(self.spacing.tolist())}, origin={tuple(self.origin.tolist())})"
+            f"spacing={tuple(self.spacing.tolist())}, origin={tuple(self.origin.tolist())}"
+            + (f", orientation={''.join(self.orientation)!r})" if self.orientation else ")")
         )
 
     # -- per-volume precomputation ----------------------------------------

@@ -104,3 +104,36 @@ def test_info_indices_lists_options(monkeypatch, capsys):
     assert code == 0
     lines = {line.split()[0]: line for line in out.splitlines()[1:] if line.strip()}
     assert "cell" in lines["grid-pc"] and "no options" in lines["naive"] and "prune" in lines["lbvh"]
+
+
+def test_clip_box_and_planes_match_the_api(monkeypatch, capsys, tmp_path, small_volume_file):
+    """``--clip-box`` and repeated ``--clip-plane`` reach render() unchanged (world units)."""
+    vol = sc.load_volume(small_volume_file)
+    lo, hi = vol.bounds
+    mid = 0.5 * (lo + hi)
+    box = (tuple(lo), (float(mid[0]), float(hi[1]), float(hi[2])))
+    planes = [((0.0, float(mid[1]), 0.0), (0.0, 1.0, 0.0)), (tuple(mid), (0.0, 0.3, -1.0))]
+    arr = tmp_path / "clip.npy"
+    args = ["render", str(small_volume_file), "--size", "24x20", "--background", "transparent",
+            "--clip-box", ",".join(f"{v:.17g}" for v in (*box[0], *box[1])), "-o", str(tmp_path / "c.png"),
+            "--array", str(arr)]
+    for p, n in planes:
+        args += ["--clip-plane", ",".join(f"{v:.17g}" for v in (*p, *n))]
+    code, _, err = run_cli(monkeypatch, capsys, *args)
+    assert code == 0, err
+    tf = sc.TransferFunction.preset("viridis", vol.value_range)
+    cam = sc.Camera.orbit(vol, 30, 20)
+    ref = sc.render(vol, tf, cam, 24, 20, background="transparent", clip_box=box, clip_planes=planes)
+    full = sc.render(vol, tf, cam, 24, 20, background="transparent")
+    np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
+    assert ref.stats["samples_nonempty"] < full.stats["samples_nonempty"]
+
+
+@pytest.mark.parametrize("opt, value", [("--clip-box", "0,0,0,1,1"), ("--clip-plane", "0,0,0,1,0,x"),
+                                        ("--clip-plane", "0,0,0,0,0,0")])
+def test_bad_clip_options_are_one_error(monkeypatch, capsys, tmp_path, small_volume_file, opt, value):
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), opt, value,
+                           "-o", str(tmp_path / "c.png"))
+    assert code == 2
+    assert err.count("error:") == 1 and opt in err
+    assert not (tmp_path / "c.png").exists()

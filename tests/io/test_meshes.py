@@ -10,7 +10,7 @@ import trimesh
 
 from sparsecast.errors import FileFormatError
 from sparsecast.io.meshes import load_mesh, load_points
-from sparsecast.surface.mesh import MeshDataError, PointCloud, TriangleMesh
+from sparsecast.surface.mesh import DEGENERATE_FRACTION, DegenerateFacesWarning, MeshDataError, PointCloud, TriangleMesh
 
 TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
 TET_F = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
@@ -30,6 +30,22 @@ def test_shared_bunny_loads(shared_file):
     path = shared_file("stanford_bunny.ply")
     mesh = load_mesh(path)
     assert mesh.n_triangles == 69451
+
+
+def test_shared_dragon_loads_with_its_few_degenerate_faces(shared_data_dir):
+    """The Stanford dragon carries a handful of zero-area triangles (the other shared meshes
+    none): it loads with a warning that counts them."""
+    path = shared_data_dir / "stanford_dragon_871k.ply"
+    if not path.is_file():
+        pytest.skip("shared data not present")
+    with pytest.warns(DegenerateFacesWarning) as caught:
+        mesh = load_mesh(path)
+    w = next(c.message for c in caught if isinstance(c.message, DegenerateFacesWarning))
+    assert not w.dropped and w.count == mesh.degenerate_faces.size
+    assert 0 < w.count <= DEGENERATE_FRACTION * mesh.n_triangles and w.total == mesh.n_triangles
+    clean, dropped = TriangleMesh.cleaned(mesh.vertices, mesh.faces)  # what drop_degenerate=True keeps
+    assert dropped == w.count and clean.n_triangles == mesh.n_triangles - w.count
+    assert clean.degenerate_faces.size == 0
 
 
 def test_missing_and_unsupported_files(tmp_path):

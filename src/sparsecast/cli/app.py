@@ -22,8 +22,8 @@ from ..errors import SparsecastError
 __all__ = [
     "app", "main", "out", "err", "warn", "error", "plain_console",
     "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
-    "AllowOutsideOpt",
-    "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt",
+    "AllowOutsideOpt", "OrientationOpt", "ViewOpt",
+    "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt", "UpOpt",
 ]
 
 app = typer.Typer(
@@ -72,6 +72,12 @@ AllowOutsideOpt = Annotated[bool, typer.Option(
     "--allow-outside-data",
     help="NRRD: read a detached header's data file even when it lies outside the header's folder.")]
 CellOpt = Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")]
+OrientationOpt = Annotated[Optional[str], typer.Option(
+    help="Anatomical axis codes of +i, +j, +k, e.g. RAS or LPS (default: the file's NRRD space / NIfTI "
+         "sform or qform, if any).")]
+ViewOpt = Annotated[Optional[str], typer.Option(
+    help="Look at the patient from anterior, posterior, left, right, superior or inferior (superior up; "
+         "anterior up from above or below); needs an orientation. Default anterior where the volume has one.")]
 
 # Options shared by the commands that render an image (render, render-mesh).
 AzimuthOpt = Annotated[float, typer.Option(help="Orbit azimuth in degrees.")]
@@ -80,6 +86,8 @@ ProjectionOpt = Annotated[str, typer.Option(help="perspective or orthographic.")
 ZoomOpt = Annotated[float, typer.Option(help="Magnification (>1 zooms in).")]
 SizeOpt = Annotated[str, typer.Option(help="Image size WIDTHxHEIGHT.")]
 OutputOpt = Annotated[Path, typer.Option("-o", "--output", help="Image file (.png, .jpg, .tif, or .npy).")]
+UpOpt = Annotated[Optional[str], typer.Option(
+    help="World axis that is up on screen: x, y, z, -x, -y or -z (default z; scanned meshes are often y-up).")]
 
 
 def main() -> None:

@@ -10,10 +10,12 @@ import typer
 from rich.text import Text
 
 from ..kernel_cache import compile_note, compile_seconds
-from .app import AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out
+from .app import (
+    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out,
+)
 from .inputs import load_input, make_tf
 
-__all__ = ["info"]
+__all__ = ["info", "orientation_line"]
 
 
 @app.command()
@@ -26,6 +28,7 @@ def info(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    orientation: OrientationOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
     presets: Annotated[bool, typer.Option("--presets", help="List TF presets and exit.")] = False,
     indices: Annotated[bool, typer.Option("--indices", help="List spatial indices and exit.")] = False,
@@ -47,7 +50,7 @@ def info(
             listed = "any keyword" if opts is None else (", ".join(opts) or "no options")
             out.print(f"  {name:<15} {listed}")
         return
-    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
     tfn = make_tf(tf, vol, tf_range, threshold)
     lo, hi = vol.value_range
     c0 = compile_seconds()
@@ -60,6 +63,7 @@ def info(
     out.print(Text.assemble((vol.name, "bold"), "  ", str(file) if file else "(built-in demo)"))
     out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.nbytes / 2**20:.1f} MiB, dtype {vol.dtype})")
     out.print(f"  spacing   {tuple(round(float(s), 6) for s in vol.spacing)}   origin {tuple(round(float(o), 6) for o in vol.origin)}")
+    out.print(f"  anatomy   {orientation_line(vol.orientation)}")
     out.print(f"  range     [{lo:g}, {hi:g}]")
     out.print(f"  histogram |{histogram_sketch(vol.data)}|  (log counts, {lo:g} .. {hi:g})")
     out.print(
@@ -87,6 +91,14 @@ def label_summary(vol, tf) -> str:
     parts = [f"{int(i)} ({int(c)} voxels{', shown' if int(i) in shown else ''})" for i, c in zip(ids[:24], n[:24])]
     more = f", ... {len(ids) - 24} more" if len(ids) > 24 else ""
     return f"{len(ids)} ids: " + ", ".join(parts) + more
+
+
+def orientation_line(codes) -> str:
+    """``RAS (+i right, +j anterior, +k superior)``, or what its absence means."""
+    if codes is None:
+        return "no orientation in the file (--view needs one: --orientation RAS, LPS, ...)"
+    names = {"L": "left", "R": "right", "A": "anterior", "P": "posterior", "S": "superior", "I": "inferior"}
+    return f"{''.join(codes)} (" + ", ".join(f"+{a} {names[c]}" for a, c in zip("ijk", codes)) + ")"
 
 
 def histogram_sketch(data: np.ndarray, bins: int = 48) -> str:

@@ -1,5 +1,6 @@
-"""The volume and transfer function that a command's FILE, ``--dims``/``--dtype``/
-``--spacing`` and ``--tf``/``--tf-range``/``--threshold`` options name (render, info, view)."""
+"""The volume, transfer function and orbit frame that a command's FILE, ``--dims``/
+``--dtype``/``--spacing``/``--orientation``, ``--tf``/``--tf-range``/``--threshold`` and
+``--up``/``--view`` options name (render, info, view)."""
 
 from __future__ import annotations
 
@@ -9,22 +10,24 @@ from typing import Optional
 from ..errors import ParameterError
 from .parse import parse_dims, parse_pair, parse_spacing
 
-__all__ = ["load_input", "make_tf"]
+__all__ = ["load_input", "make_tf", "orbit_frame", "orbit_angles"]
 
 
 def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str],
-               allow_outside: bool = False):
+               allow_outside: bool = False, orientation: Optional[str] = None):
     """The volume in ``file`` (raw layout and spacing from the options), or the built-in
     demo when no file is given.
 
     ``allow_outside`` (``--allow-outside-data``) lets a detached NRRD header name a data
     file outside its folder; the viewer never passes it (it serves what it reads).
+    ``orientation`` (``--orientation``) sets the axis codes, e.g. for a file that lost them.
     """
     from ..datasets import demo_volume
     from ..io import load_volume
 
     if file is None:
-        given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing)) if v]
+        given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing),
+                                    ("--orientation", orientation)) if v]
         if given:  # silently ignoring them would render the demo as if they applied
             raise ParameterError(
                 f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
@@ -38,7 +41,43 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
         kw["dtype"] = dtype
     if spacing:
         kw["spacing"] = parse_spacing(spacing)
+    if orientation:
+        from ..axes import check_orientation
+
+        kw["orientation"] = check_orientation(orientation, "--orientation")
     return load_volume(file, allow_outside=allow_outside, **kw)
+
+
+def orbit_frame(vol, file: Optional[Path], up: Optional[str], view: Optional[str]) -> dict:
+    """``Camera.orbit``'s ``up=`` / ``view=`` for ``--up`` / ``--view``: a volume with an
+    anatomical orientation is seen from the front (``view="anterior"``) unless ``--up``
+    says otherwise, so a head is not shown from behind; others orbit about +z.
+
+    Raises
+    ------
+    ParameterError
+        ``--up`` and ``--view`` both given, a bad axis or view name, or ``--view`` for a
+        volume without orientation (naming the file and what is missing).
+    """
+    from ..axes import VIEWS, axis_vector
+
+    if up is not None and view is not None:
+        raise ParameterError(f"--up {up}, --view {view}: a view sets the up direction itself; give one of them")
+    if up is not None:
+        axis_vector(up, "--up")
+        return {"up": up}
+    if view is not None:
+        if view.lower() not in VIEWS:
+            raise ParameterError(f"--view: expected one of {', '.join(VIEWS)}, got {view!r}")
+        if vol.orientation is None:
+            raise ParameterError(
+                f"--view {view}: {repr(str(file)) if file else 'the built-in demo'} has no anatomical orientation "
+                f"(no NRRD 'space' field such as left-posterior-superior, no NIfTI sform/qform code); pass "
+                f"--orientation with the axis codes of +i, +j, +k (e.g. RAS or LPS) if you know them, or "
+                f"use --up / --azimuth / --elevation"
+            )
+        return {"view": view.lower()}
+    return {"view": "anterior"} if vol.orientation is not None else {}
 
 
 def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):
@@ -87,3 +126,10 @@ def label_tf(spec: str, vol):
 def _id_list(ids, limit: int = 20) -> str:
     text = ", ".join(str(int(i)) for i in ids[:limit])
     return text + (f", ... ({len(ids)} ids)" if len(ids) > limit else "")
+
+
+def orbit_angles(frame: dict, azimuth: Optional[float], elevation: Optional[float]) -> tuple[float, float]:
+    """The orbit angles: as given, else 0, 0 from a named view (the view itself) and the
+    three-quarter 30, 20 otherwise."""
+    az0, el0 = (0.0, 0.0) if "view" in frame else (30.0, 20.0)
+    return (az0 if azimuth is None else azimuth), (el0 if elevation is None else elevation)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -13,7 +14,7 @@ from ..errors import ParameterError
 from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
-from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, ZoomOpt, app, out
+from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, UpOpt, ZoomOpt, app, out, warn
 from .parse import parse_size
 
 __all__ = ["render_mesh", "INDICES"]
@@ -33,35 +34,43 @@ def render_mesh(
     projection: ProjectionOpt = "perspective",
     zoom: ZoomOpt = 1.0,
     size: SizeOpt = "512x512",
-    y_up: Annotated[bool, typer.Option("--y-up/--z-up", help="The file's up axis (scanned meshes are usually y-up).")] = False,
+    up: UpOpt = None,
+    y_up: Annotated[Optional[bool], typer.Option("--y-up/--z-up", hidden=True, help="Deprecated: --up y / --up z.")] = None,
+    drop_degenerate: Annotated[bool, typer.Option("--drop-degenerate", help="Remove zero-area triangles (a mesh may keep up to 0.1 % of them, with a warning; more are an error without this).")] = False,
     points: Annotated[bool, typer.Option("--points", help="Read the file as a point cloud (splatted discs; needs --index rbvh).")] = False,
     radius: Annotated[Optional[float], typer.Option(help="Point clouds: disc radius (default from the point spacing).")] = None,
     output: OutputOpt = Path("sparsecast-mesh.png"),
 ) -> None:
     """Render a triangle mesh (or point cloud) with an exact BVH or a rasterized BVH."""
     from ..camera import Camera
-    from ..io.meshes import load_mesh, load_points
+    from ..io.meshes import load_points
     from ..surface import build_bvh, build_rbvh, render_surface
-    from ..surface.mesh import tiny_points, warmup_mesh, z_up
+    from ..axes import axis_vector
+    from ..surface.mesh import orient, tiny_points, warmup_mesh
     from ..surface.render import MODES
 
     one_of(index, "--index", INDICES)
     one_of(mode, "--mode", MODES)
     if points and index != "rbvh":
         raise ParameterError("--points: point clouds are rendered with --index rbvh only")
+    if y_up is not None:  # the deprecated spelling of --up y / --up z
+        if up is not None:
+            raise ParameterError(f"--y-up/--z-up: give the up axis once, as --up (got --up {up} too)")
+        up = "y" if y_up else "z"
+    up = up or "z"
+    axis_vector(up, "--up")
     width, height = parse_size(size)
     check_output(output, "-o", IMAGE_SUFFIXES)  # before any work
     t0 = time.perf_counter()
     if points:
         surface = load_points(file, radius=radius)
-        if y_up:
-            raise ParameterError("--y-up: only meshes can be rotated; pass z-up points")
+        if axis_vector(up)[2] != 1.0:
+            raise ParameterError(f"--up {up}: only meshes can be rotated; pass z-up points")
         what = f"{len(surface.points)} points"
     else:
-        surface = load_mesh(file)
-        if y_up:
-            surface = z_up(surface)
-        what = f"{surface.n_triangles} triangles"
+        surface, dropped = _load_mesh(file, drop_degenerate)
+        surface = orient(surface, up)
+        what = f"{surface.n_triangles} triangles" + (f" after dropping {dropped} degenerate" if drop_degenerate else "")
     build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else build_bvh
     # Compile the build kernels on a tiny surface of the same kind first (Numba caches
     # them on disk), so the build time printed below is the build's, not the first
@@ -81,3 +90,30 @@ def render_mesh(
         f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; " + (f"{note}, " if note else "")
         + f"{time.perf_counter() - t0:.1f} s total)"
     )
+
+
+def _load_mesh(file: Path, drop: bool):
+    """``load_mesh`` with its warnings on stderr (one ``warning:`` line each) and its
+    advice in the command line's words (``--drop-degenerate``, not the API's argument);
+    returns the mesh and how many degenerate triangles were dropped."""
+    from ..io.meshes import load_mesh
+    from ..surface.mesh import DegenerateFacesError, DegenerateFacesWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            mesh = load_mesh(file, drop_degenerate=drop)
+        except DegenerateFacesError as exc:
+            raise DegenerateFacesError(exc.source, exc.count, exc.total, exc.first, "pass --drop-degenerate to remove them") from None
+    dropped = 0
+    for w in caught:
+        m = w.message
+        if isinstance(m, DegenerateFacesWarning):
+            if m.dropped:
+                dropped = m.count  # said on the output line
+            else:
+                warn(f"{file}: {m.count} of {m.total} triangles are degenerate (zero area); kept (no ray "
+                     f"hits them); --drop-degenerate removes them")
+        else:
+            warn(str(m))
+    return mesh, dropped

@@ -18,7 +18,7 @@ from ..index.registry import parse_index_spec
 
 __all__ = [
     "parse_size", "parse_pair", "parse_numbers", "parse_dims", "parse_spacing", "parse_background",
-    "parse_index_spec", "none_list",
+    "parse_index_spec", "none_list", "parse_clip_box", "parse_clip_plane",
 ]
 
 
@@ -96,3 +96,24 @@ def none_list(values: Optional[list[str]]) -> Optional[list[str]]:
     if values is None:
         return None
     return [] if [v.lower() for v in values] == ["none"] else values
+
+
+def parse_clip_box(text: Optional[str]):
+    """``--clip-box x0,y0,z0,x1,y1,z1`` (world units) -> ``((x0, y0, z0), (x1, y1, z1))`` or None."""
+    if text is None:
+        return None
+    v = parse_numbers(text, "--clip-box")
+    if len(v) != 6:
+        raise fail("--clip-box", "6 numbers x0,y0,z0,x1,y1,z1 (world units)", text)
+    return tuple(v[:3]), tuple(v[3:])
+
+
+def parse_clip_plane(text: str):
+    """``--clip-plane px,py,pz,nx,ny,nz`` -> ``((px, py, pz), (nx, ny, nz))``: the plane
+    through ``p`` keeping the side ``n`` points to."""
+    v = parse_numbers(text, "--clip-plane")
+    if len(v) != 6:
+        raise fail("--clip-plane", "6 numbers px,py,pz,nx,ny,nz (a point, and the normal of the kept side)", text)
+    if not any(v[3:]):
+        raise fail("--clip-plane", "a non-zero normal nx,ny,nz after the point", text)
+    return tuple(v[:3]), tuple(v[3:])

@@ -12,14 +12,20 @@ from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
-    AllowOutsideOpt, AzimuthOpt, CellOpt, DimsOpt, DtypeOpt, ElevationOpt, FileArg, OutputOpt, ProjectionOpt, SizeOpt,
-    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, ZoomOpt, app, out, warn,
+    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, OutputOpt, ProjectionOpt, SizeOpt,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
-from .inputs import load_input, make_tf
-from .parse import parse_background, parse_index_spec, parse_size
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame
+from .parse import parse_background, parse_clip_box, parse_clip_plane, parse_index_spec, parse_size
 
 __all__ = ["render"]
+
+# A named view is its own default angle (0, 0); otherwise the classic three-quarter view.
+OrbitAzimuthOpt = Annotated[Optional[float], typer.Option(
+    help="Orbit azimuth in degrees about the up axis (default 30; 0 from a --view, which it turns away from).")]
+OrbitElevationOpt = Annotated[Optional[float], typer.Option(
+    help="Orbit elevation in degrees (default 20; 0 from a --view).")]
 
 
 @app.command()
@@ -28,8 +34,10 @@ def render(
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
     threshold: ThresholdOpt = 0.1,
-    azimuth: AzimuthOpt = 30.0,
-    elevation: ElevationOpt = 20.0,
+    azimuth: OrbitAzimuthOpt = None,
+    elevation: OrbitElevationOpt = None,
+    up: UpOpt = None,
+    view: ViewOpt = None,
     projection: ProjectionOpt = "perspective",
     zoom: ZoomOpt = 1.0,
     size: SizeOpt = "512x512",
@@ -39,11 +47,17 @@ def render(
     shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
+    clip_box: Annotated[Optional[str], typer.Option(
+        help="Keep only x0,y0,z0,x1,y1,z1 (world units, see `sparsecast info` for the bounds).")] = None,
+    clip_plane: Annotated[Optional[list[str]], typer.Option(
+        help="Keep the side of the plane px,py,pz,nx,ny,nz that the normal points to (world units; "
+             "repeat for up to 6 planes).")] = None,
     output: OutputOpt = Path("sparsecast.png"),
     array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    orientation: OrientationOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
@@ -58,19 +72,23 @@ def render(
         check_output(array, "--array", {".npy"})
     # Index options are checked before any work: a typo costs no volume load.
     index_name, index_options = parse_index_spec(index)
+    box = parse_clip_box(clip_box)
+    planes = [parse_clip_plane(p) for p in clip_plane] if clip_plane else None
     if cell is not None:
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
     t0 = time.perf_counter()
     c0 = compile_seconds()
-    vol = load_input(file, dims, dtype, spacing, allow_outside_data)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
+    frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:
         warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
-    cam = Camera.orbit(vol, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
+    az, el = orbit_angles(frame, azimuth, elevation)
+    cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
-                    background=bg, **index_options)
+                    background=bg, clip_box=box, clip_planes=planes, **index_options)
     img.save(output)
     if array is not None:
         img.save(array)
@@ -81,7 +99,8 @@ def render(
     note = compile_note(compile_seconds() - c0)
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
-        f"{chosen}, build {s['build_ms']:.0f} ms, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        + (f"view {frame['view']} ({''.join(vol.orientation)}), " if "view" in frame else "")
+        + f"{chosen}, build {s['build_ms']:.0f} ms, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
         f"{s['msamples_per_s']:.1f} M samples/s; " + (f"{note}, " if note else "")
         + f"{time.perf_counter() - t0:.1f} s total)"
     )

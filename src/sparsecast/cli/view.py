@@ -7,8 +7,11 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.checks import as_int
-from .app import CellOpt, DimsOpt, DtypeOpt, FileArg, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, err, out, warn
-from .inputs import load_input, make_tf
+from .app import (
+    CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt,
+    app, err, out, warn,
+)
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame
 
 __all__ = ["view"]
 
@@ -21,6 +24,8 @@ def view(
     threshold: ThresholdOpt = 0.1,
     index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default auto: chosen per frame from the occupancy, rebuild-cheap while a TF point is dragged).")] = None,
     cell: CellOpt = None,
+    up: UpOpt = None,
+    view: ViewOpt = None,
     host: Annotated[str, typer.Option(help="Address to bind; anything but loopback needs --allow-remote.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port (0 picks a free one).")] = 8765,
     allow_remote: Annotated[bool, typer.Option("--allow-remote", help="Allow a non-loopback --host (no authentication!).")] = False,
@@ -28,19 +33,23 @@ def view(
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
+    orientation: OrientationOpt = None,
 ) -> None:
     """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices."""
     from ..viewer import require_web_stack
 
     require_web_stack()
     from ..viewer.server import ViewerServer, check_host
+    from ..viewer.messages import CameraSpec
     from ..viewer.session import ViewerData, spec_from_preset
 
     remote = check_host(host, allow_remote)
     as_int(port, "--port", 0, 65535, expected="0..65535 (0 picks a free port)")
-    vol = load_input(file, dims, dtype, spacing)
+    vol = load_input(file, dims, dtype, spacing, orientation=orientation)
+    frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
-    data = ViewerData.create(vol, tfn, index=index, cell=cell)
+    az, el = orbit_angles(frame, None, None)
+    data = ViewerData.create(vol, tfn, index=index, cell=cell, camera=CameraSpec(az, el), **frame)
     if not tf.lower().endswith(".json"):
         # Editable form of a preset: its colour map plus a few opacity points.
         data.tf = spec_from_preset(tf, tfn.value_range, threshold)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..axes import axcodes, space_directions
 from ..errors import FileFormatError
 from ..volume import Volume
 from .budget import check_declared
@@ -21,7 +22,9 @@ def read_nifti(path: Path) -> Read:
 
     The on-disk dtype is kept unless ``scl_slope``/``scl_inter`` are set and
     non-trivial (then the scaled values, at least float32); spacing from the zooms,
-    origin from the affine's translation.
+    origin from the affine's translation; the orientation (axis codes) from the affine
+    (``aff2axcodes``) when the sform or qform code says it maps to a patient frame (a
+    file with both codes 0 is ANALYZE-style: orientation unknown).
     """
     import nibabel as nib
 
@@ -62,10 +65,12 @@ def read_nifti(path: Path) -> Read:
     spacing = np.asarray(zooms[:3], dtype=np.float64)
     if spacing.shape != (3,) or not np.all(np.isfinite(spacing)) or np.any(spacing <= 0):
         spacing = None
-    origin = np.asarray(img.affine, dtype=np.float64)[:3, 3]
+    affine = np.asarray(img.affine, dtype=np.float64)
+    origin = affine[:3, 3]
     if not np.all(np.isfinite(origin)):
         origin = None
-    return data, spacing, origin
+    coded = int(img.header["sform_code"]) > 0 or int(img.header["qform_code"]) > 0
+    return Read(data, spacing, origin, axcodes(affine[:3, :3]) if coded else None)
 
 
 def _check_size(path: Path, img) -> None:
@@ -84,10 +89,13 @@ def _check_size(path: Path, img) -> None:
 
 
 def write_nifti(volume: Volume, tmp: Path, compress: bool) -> None:
-    """Affine = diag(spacing) + origin; ``.nii.gz`` is compressed by its name (``compress`` is ignored)."""
+    """Affine = diag(spacing) + origin, its columns' signs and order from the orientation
+    (a NIfTI world is RAS+, so a volume without orientation reads back as RAS); ``.nii.gz``
+    is compressed by its name (``compress`` is ignored)."""
     import nibabel as nib
 
-    affine = np.diag(np.append(volume.spacing.astype(np.float64), 1.0))
+    affine = np.eye(4)
+    affine[:3, :3] = space_directions(volume.orientation or ("R", "A", "S")) * volume.spacing
     affine[:3, 3] = volume.origin
     img = nib.Nifti1Image(np.asarray(volume.data).transpose(2, 1, 0), affine)  # (z,y,x) -> (x,y,z)
     img.header.set_data_dtype(volume.data.dtype)

@@ -26,13 +26,22 @@ from pathlib import Path
 
 import numpy as np
 
+from ..axes import axcodes, space_directions
 from ..errors import FileFormatError
 from ..volume import Volume
 from .budget import check_declared, memory_limit
 from .files import file_size, require_regular_file
 from .reading import Read, read_guard
 
-__all__ = ["read_nrrd", "write_nrrd", "HEADER_LIMIT"]
+__all__ = ["read_nrrd", "write_nrrd", "HEADER_LIMIT", "SPACES"]
+
+#: NRRD ``space`` values with an anatomical meaning -> the directions of its +x, +y, +z
+#: (the spec's long names and abbreviations; other spaces, e.g. scanner-xyz, have none)
+SPACES: dict[str, tuple[str, str, str]] = {
+    "right-anterior-superior": ("R", "A", "S"), "ras": ("R", "A", "S"),
+    "left-anterior-superior": ("L", "A", "S"), "las": ("L", "A", "S"),
+    "left-posterior-superior": ("L", "P", "S"), "lps": ("L", "P", "S"),
+}
 
 #: bytes an NRRD header may take (real ones are a few hundred)
 HEADER_LIMIT = 1 << 20
@@ -45,7 +54,8 @@ def read_nrrd(path: Path, *, allow_outside: bool = False) -> Read:
     """A 3-D scalar NRRD (attached or detached header; raw, gzip, bzip2 or ASCII encoding).
 
     Spacing comes from the norms of ``space directions``, else ``spacings``; origin
-    from ``space origin``.
+    from ``space origin``; the anatomical orientation (axis codes) from ``space``
+    (:data:`SPACES`) and the signs and order of ``space directions``.
 
     Parameters
     ----------
@@ -79,7 +89,7 @@ def read_nrrd(path: Path, *, allow_outside: bool = False) -> Read:
                 f"expected a 3-D scalar volume with kinds 'domain' or 'space'"
             )
     data = _payload(path, header, header_size, sizes, allow_outside)
-    return data, _spacing(header), _origin(header)
+    return Read(data, _spacing(header), _origin(header), _orientation(header))
 
 
 def _read_header(path: Path) -> tuple[dict, int]:
@@ -307,6 +317,21 @@ def _spacing(header: dict) -> np.ndarray | None:
     return None
 
 
+def _orientation(header: dict) -> tuple[str, str, str] | None:
+    """Axis codes of +i, +j, +k: the ``space``'s axes, as ``space directions`` map the
+    voxel axes onto them (a negative direction flips the code); None without an
+    anatomical space."""
+    space = SPACES.get(str(header.get("space", "")).strip().lower())
+    if space is None:
+        return None
+    dirs = header.get("space directions")
+    if dirs is None:  # spacings only: the voxel axes are the space's axes
+        return space
+    dirs = np.asarray(dirs, dtype=np.float64)
+    # Rows are the voxel axes' vectors; axcodes takes them as columns.
+    return axcodes(dirs.T, space) if dirs.shape == (3, 3) else None
+
+
 def _origin(header: dict) -> np.ndarray | None:
     org = header.get("space origin")
     if org is not None:
@@ -317,12 +342,23 @@ def _origin(header: dict) -> np.ndarray | None:
 
 
 def write_nrrd(volume: Volume, tmp: Path, compress: bool) -> None:
-    """Axes x y z, ``space directions`` = diag(spacing), ``space origin``; gzip when ``compress``."""
+    """Axes x y z, ``space directions`` = diag(spacing), ``space origin``; gzip when ``compress``.
+
+    A volume with an orientation gets ``space: left-posterior-superior`` (DICOM's frame),
+    its axes' codes in the signs and order of ``space directions``; one without gets
+    ``space dimension: 3`` (no anatomical meaning claimed).
+    """
     import nrrd
 
+    space: dict = {"space dimension": 3}
+    directions = np.diag(volume.spacing.astype(np.float64))
+    if volume.orientation is not None:
+        space = {"space": "left-posterior-superior"}
+        # Rows are the voxel axes' vectors in LPS: the codes' unit vectors, scaled.
+        directions = space_directions(volume.orientation, ("L", "P", "S")).T * volume.spacing[:, None]
     header = {
-        "space dimension": 3,
-        "space directions": np.diag(volume.spacing.astype(np.float64)),
+        **space,
+        "space directions": directions,
         "space origin": volume.origin.astype(np.float64),
         "kinds": ["domain", "domain", "domain"],
         "encoding": "gzip" if compress else "raw",

@@ -9,7 +9,7 @@ as one line, so every reader calls its library through :func:`read_guard`.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 
@@ -17,9 +17,16 @@ from ..errors import FileFormatError, SparsecastError
 
 __all__ = ["Read", "read_guard", "read_error"]
 
-#: What a reader returns: the array ``(nz, ny, nx)``, and the spacing and origin the
-#: file stores (``(x, y, z)``), each None where it stores none.
-Read = tuple[np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]
+class Read(NamedTuple):
+    """What a reader returns: the array ``(nz, ny, nx)``, and the spacing and origin the
+    file stores (``(x, y, z)``) and its anatomical axis codes (``("L", "P", "S")``, see
+    :mod:`sparsecast.axes`), each None where it stores none. Readers of formats without
+    orientation may return a plain 3-tuple (``Read(*result)`` fills in None)."""
+
+    data: np.ndarray
+    spacing: Optional[np.ndarray]
+    origin: Optional[np.ndarray]
+    orientation: Optional[tuple[str, str, str]] = None
 
 
 def read_error(path: Path, exc: BaseException, what: str = "") -> FileFormatError:

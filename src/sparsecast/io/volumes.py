@@ -19,12 +19,14 @@ import numpy as np
 
 from .._util.atomic import atomic_path
 from .._util.checks import fail, one_of
+from ..axes import check_orientation
 from ..errors import FileFormatError, ParameterError
 from ..volume import Volume
 from .formats import FORMATS, READ_SUFFIXES, WRITE_SUFFIXES
 from .files import require_regular_file
 from .names import stem_of, suffix_of
 from .raw import RAW_DTYPES, parse_raw_name
+from .reading import Read
 from .tiff import read_tiff_dir
 
 __all__ = [
@@ -64,9 +66,10 @@ def _native(arr: np.ndarray) -> np.ndarray:
     return arr
 
 
-def _make_volume(arr: np.ndarray, spacing, origin, path: Path, name: str, nonfinite) -> Volume:
+def _make_volume(arr: np.ndarray, spacing, origin, path: Path, name: str, nonfinite, orientation) -> Volume:
     # Build with the full path as the name so data errors name the file, then relabel.
-    vol = Volume(_native(np.asarray(arr)), spacing, origin, name=str(path), nonfinite=nonfinite)
+    vol = Volume(_native(np.asarray(arr)), spacing, origin, name=str(path), nonfinite=nonfinite,
+                 orientation=orientation)
     vol.name = name
     return vol
 
@@ -82,6 +85,7 @@ def load_volume(
     header_offset: int = 0,
     nonfinite: Literal["raise", "replace"] = "raise",
     allow_outside: bool = False,
+    orientation: str | tuple[str, str, str] | None = None,
 ) -> Volume:
     """Load a scalar volume from a file, choosing the reader from the file name.
 
@@ -113,12 +117,17 @@ def load_volume(
         NRRD only: read a ``data file:`` that resolves outside the header's folder
         (an absolute path, ``..``, a symlink out of it). Default False: such a header
         is refused, so a header from elsewhere cannot read arbitrary files as voxels.
+    orientation : str or (3,) str, optional
+        Overrides the anatomical axis codes the file stores (``"RAS"``, ``"LPS"``: where
+        ``+i, +j, +k`` point in the patient), e.g. for a file that lost them (default:
+        NRRD ``space`` with ``space directions``, NIfTI sform/qform when its code is set;
+        other formats store none).
 
     Returns
     -------
     Volume
         Array of shape ``(nz, ny, nx)``; ``name`` is the file stem (``brain`` for
-        ``brain.nii.gz``).
+        ``brain.nii.gz``); ``orientation`` the axis codes or None.
 
     Raises
     ------
@@ -163,8 +172,9 @@ def load_volume(
                 f"{', '.join(extra)}: only apply to raw files (.raw/.bin/.dat), not {str(p)!r}"
             )
 
+    orientation = check_orientation(orientation)  # before any work
     if p.is_dir():
-        arr, f_spacing, f_origin = read_tiff_dir(p)
+        read = Read(*read_tiff_dir(p))
         name = p.name or str(p)
     elif fmt is None:
         raise FileFormatError(
@@ -175,15 +185,16 @@ def load_volume(
         require_regular_file(p, "volume file")  # a FIFO blocks, /dev/zero never ends
         name = stem_of(p)
         if fmt.raw_layout:
-            arr, f_spacing, f_origin = fmt.read(p, dims, dtype, byte_order, header_offset)
+            read = Read(*fmt.read(p, dims, dtype, byte_order, header_offset))
         elif fmt.data_file:
-            arr, f_spacing, f_origin = fmt.read(p, allow_outside=bool(allow_outside))
+            read = Read(*fmt.read(p, allow_outside=bool(allow_outside)))
         else:
-            arr, f_spacing, f_origin = fmt.read(p)
+            read = Read(*fmt.read(p))
 
-    sp = spacing if spacing is not None else (f_spacing if f_spacing is not None else 1.0)
-    org = origin if origin is not None else (f_origin if f_origin is not None else 0.0)
-    return _make_volume(arr, sp, org, p, name, nonfinite)
+    sp = spacing if spacing is not None else (read.spacing if read.spacing is not None else 1.0)
+    org = origin if origin is not None else (read.origin if read.origin is not None else 0.0)
+    return _make_volume(read.data, sp, org, p, name, nonfinite,
+                        orientation if orientation is not None else read.orientation)
 
 
 def save_volume(volume: Volume, path: PathLike, *, compress: bool = True) -> Path:

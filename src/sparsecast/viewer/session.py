@@ -121,8 +121,13 @@ class ViewerData:
     index: IndexSpec = field(default_factory=lambda: IndexSpec(AUTO))
     camera: CameraSpec = field(default_factory=CameraSpec)
     dt: float | None = None
+    #: the orbit frame (``Camera.orbit``'s ``up`` or ``view``): the client's azimuth and
+    #: elevation turn about it
+    up: str | None = None
+    view: str | None = None
 
     def __post_init__(self) -> None:
+        Camera.orbit(self.volume, up=self.up, view=self.view)  # a bad frame fails here, not per frame
         data = self.volume.data
         lo, hi = self.volume.value_range
         if not hi > lo:
@@ -258,7 +263,8 @@ class Session:
         return idx, ms, True
 
     def _camera(self, c: CameraSpec) -> Camera:
-        return Camera.orbit(self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan)
+        return Camera.orbit(self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan,
+                            up=self.data.up, view=self.data.view)
 
     @staticmethod
     def _view_key(s: Snapshot, w: int | None = None, h: int | None = None) -> tuple:
