@@ -258,3 +258,79 @@ def expected_sample_count(t_near: float, t_far: float, dt: float) -> int:
     if t_far < tn:
         return 0
     return max(0, math.floor(t_far / dt) - math.ceil(tn / dt) + 1)
+
+
+def reference_iso(
+    volume, tf, camera, width: int, height: int, values, colors=None, *, dt: float | None = None,
+    ert: float = 0.99, dvr: bool = False, steps: int = 10,
+) -> np.ndarray:
+    """Render like ``sparsecast.render(..., index='naive', mode='iso' (or 'iso+dvr'), shading=False)``.
+
+    Contract: lattice samples ``f_k`` as in :func:`reference_render`; a surface ``v``
+    lies between samples ``k-1`` and ``k`` (both inside the ray's box interval) when
+    ``f_{k-1} >= v`` and ``f_k >= v`` differ; its ``t`` is found by ``steps`` bisections
+    of ``[t_{k-1}, t_k]`` and a secant step; surfaces between ``k-1`` and ``k`` are
+    composited in order of ``t`` (ties by isovalue index) with straight colour and
+    opacity ``colors[j]``, then (``dvr``) the DVR sample ``k``; early termination
+    before each surface and sample. ``colors`` defaults to the TF colour, opaque.
+    Written per ray in plain Python (slow; small images only).
+    """
+    spacing = np.asarray(volume.spacing, np.float64)
+    origin = np.asarray(volume.origin, np.float64)
+    data = np.asarray(volume.data)
+    nz, ny, nx = data.shape
+    dt = 0.5 * float(spacing.min()) if dt is None else float(dt)
+    values = np.atleast_1d(np.asarray(values, np.float64))
+    if colors is None:
+        colors = np.ones((len(values), 4))
+        colors[:, :3] = tf(values)[:, :3]
+    colors = np.asarray(colors, np.float64)
+    unit = tf.unit_distance if tf.unit_distance is not None else float(spacing.min())
+    table = np.asarray(tf.opacity_table(dt, unit), np.float32)
+    wo, wd = camera.rays(width, height)
+    o = (wo.reshape(-1, 3) - origin) / spacing
+    d = wd.reshape(-1, 3) / spacing
+    t_near, t_far = ray_box(o, d, np.array([nx - 1.0, ny - 1.0, nz - 1.0]))
+    k0, k1 = lattice(t_near, t_far, dt)
+    out = np.zeros((o.shape[0], 4))
+
+    def field(i, t):
+        p = o[i] + t * d[i]
+        return float(trilinear(data, p[0:1], p[1:2], p[2:3])[0])
+
+    def refine(i, ta, tb, ga, gb, v):
+        above = ga >= 0.0
+        for _ in range(steps):
+            tm = 0.5 * (ta + tb)
+            gm = field(i, tm) - v
+            if (gm >= 0.0) == above:
+                ta, ga = tm, gm
+            else:
+                tb, gb = tm, gm
+        return tb if ga == gb else ta + (tb - ta) * (ga / (ga - gb))
+
+    for i in range(o.shape[0]):
+        acc = np.zeros(4)
+        f_prev = None
+        for k in range(int(k0[i]), int(k1[i]) + 1):
+            if acc[3] >= ert:
+                break
+            f = field(i, k * dt)
+            if f_prev is not None:
+                hits = sorted((refine(i, (k - 1) * dt, k * dt, f_prev - v, f - v, v), j)
+                              for j, v in enumerate(values) if (f_prev >= v) != (f >= v))
+                for _, j in hits:
+                    if acc[3] >= ert:
+                        break
+                    w = (1.0 - acc[3]) * colors[j, 3]
+                    acc[:3] += w * colors[j, :3]
+                    acc[3] += w
+            if dvr and acc[3] < ert:
+                rgba = tf_lookup(table, np.array([f]), float(tf.value_range[0]), float(tf.scale))[0]
+                if rgba[3] > 0:
+                    w = (1.0 - acc[3]) * rgba[3]
+                    acc[:3] += w * rgba[:3]
+                    acc[3] += w
+            f_prev = f
+        out[i] = acc
+    return out.reshape(height, width, 4).astype(np.float32)

@@ -24,7 +24,8 @@ from .errors import (
     VolumeDataError,
 )
 from .index import SpatialIndex, available_indices, build_index
-from .io import load_volume, save_volume
+from .io import load_series, load_volume, save_volume
+from .series import VolumeSeries
 from .image import Image
 from .render import render
 from .io.particles import load_particles
@@ -66,6 +67,8 @@ __all__ = [
     "datasets",
     "load_particles",
     "load_volume",
+    "load_series",
+    "VolumeSeries",
     "render",
     "render_particles",
     "save_volume",

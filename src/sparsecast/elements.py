@@ -26,14 +26,22 @@ from numba import njit, prange
 
 from ._util.checks import as_float, fail, unit_float
 from .errors import ParameterError
+from .neighbours import local_density, typical_spacing
 from .kernels.sample import gradient as _gradient
 from .kernels.sample import trilinear
 from .volume import Volume
 
-__all__ = ["Elements", "ParticleSet", "voxel_elements", "brick_elements", "RESAMPLING"]
+__all__ = ["Elements", "ParticleSet", "voxel_elements", "brick_elements", "RESAMPLING",
+           "default_particle_radius", "DERIVED_ATTRIBUTES", "DENSITY_NEIGHBOURS", "RADIUS_NEIGHBOURS"]
 
 #: resampling factors accepted by :func:`voxel_elements`
 RESAMPLING = (1.0, 1.5, 2.0)
+#: attributes every ParticleSet derives from its centres (ParticleSet.attribute)
+DERIVED_ATTRIBUTES = ("log_density",)
+#: neighbours of the density estimate behind "log_density"
+DENSITY_NEIGHBOURS = 16
+#: neighbour whose median distance is the default particle radius
+RADIUS_NEIGHBOURS = 2
 
 
 @dataclass(frozen=True)
@@ -196,32 +204,64 @@ def brick_elements(volume: Volume, tf, brick: int = 8) -> Elements:
                     {"brick": brick, "bricks_total": int(occ.size)})
 
 
+def default_particle_radius(centers) -> float:
+    """A radius for particles that come without one: the median distance to the
+    second-nearest neighbour (:data:`RADIUS_NEIGHBOURS`).
+
+    Why: a fixed share of the bounding box (the former default, 0.5 % of its
+    diagonal) knows nothing of how the particles are spread; a halo's outliers
+    stretch its box, and a radius from the box blurs its core into one blob. The
+    median neighbour distance follows the bulk of the particles: where most of them
+    are, a sphere reaches its nearest neighbours (a continuous field); denser knots
+    overlap more and show as brighter, sparse outskirts stay separate points. On
+    the 32k-particle halo in shared data the second neighbour (0.051) kept its two
+    cores and subhalos apart where the 8th (0.087) merged them. Sets of fewer than
+    3 particles, or all in one place: 0.5 % of the box diagonal (1e-6 at least).
+    """
+    c = np.asarray(centers, dtype=np.float64)
+    r = typical_spacing(c, RADIUS_NEIGHBOURS) if len(c) > RADIUS_NEIGHBOURS else 0.0
+    if r <= 0.0:
+        r = 0.005 * float(np.linalg.norm(np.ptp(c, axis=0))) if len(c) else 0.0
+    return max(r, 1e-6)
+
+
 class ParticleSet:
-    """Spheres: centres, radii and optional colours (world space).
+    """Spheres: centres, radii, optional colours and per-particle attributes (world space).
 
     Parameters
     ----------
     centers : array_like, (n, 3)
-    radii : float or array_like, (n,)
-        Positive radii.
+    radii : float or array_like, (n,), optional
+        Positive radii; default :func:`default_particle_radius` (from the
+        nearest-neighbour spacing of the centres).
     colors : array_like, (n, 3), optional
         Straight RGB in [0, 1]; default white.
     name : str
         Label for messages.
+    attributes : dict of str to (n,) array_like, optional
+        Per-particle values to colour by (a catalogue's ``mag``, a simulation's
+        ``mass``); :meth:`attribute` also derives :data:`DERIVED_ATTRIBUTES`.
     """
 
-    def __init__(self, centers, radii, colors=None, *, name: str = "particles") -> None:
+    def __init__(self, centers, radii=None, colors=None, *, name: str = "particles",
+                 attributes: dict | None = None) -> None:
         c = np.asarray(centers, dtype=np.float64)
         if c.ndim != 2 or c.shape[1] != 3:
             raise ParameterError(f"{name}: centers: expected shape (n, 3), got {c.shape}")
+        if not np.all(np.isfinite(c)):
+            raise ParameterError(f"{name}: centers and radii must be finite")
+        self.radius_estimated = radii is None
+        if radii is None:
+            radii = default_particle_radius(c)
         r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (c.shape[0],)).copy() if np.ndim(radii) == 0 \
             else np.asarray(radii, dtype=np.float64)
         if r.shape != (c.shape[0],):
             raise ParameterError(f"{name}: radii: expected {c.shape[0]} values, got shape {r.shape}")
-        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))):
+        if not np.all(np.isfinite(r)):
             raise ParameterError(f"{name}: centers and radii must be finite")
         if r.size and not np.all(r > 0):
             raise ParameterError(f"{name}: radii: expected positive values, got min {r.min():g}")
+        self.has_colors = colors is not None
         if colors is None:
             col = np.ones((c.shape[0], 3), np.float64)
         else:
@@ -233,10 +273,43 @@ class ParticleSet:
                 raise ParameterError(f"{name}: colors: expected finite values in [0, 1], found NaN or Inf")
             if col.size and (col.min() < 0 or col.max() > 1):
                 raise ParameterError(f"{name}: colors: expected values in [0, 1]")
+        attrs = {}
+        for key, values in (attributes or {}).items():
+            v = np.asarray(values, dtype=np.float64)
+            if v.shape != (c.shape[0],):
+                raise ParameterError(f"{name}: attribute {key!r}: expected {c.shape[0]} values, got shape {v.shape}")
+            if not np.all(np.isfinite(v)):
+                raise ParameterError(f"{name}: attribute {key!r}: expected finite values, found NaN or Inf")
+            attrs[str(key)] = v
         self.centers = c
         self.radii = r
         self.colors = np.ascontiguousarray(col)
         self.name = name
+        self.attributes = attrs
+        self._derived: dict[str, np.ndarray] = {}
+
+    @property
+    def attribute_names(self) -> tuple[str, ...]:
+        """What :meth:`attribute` accepts: the set's own attributes, then the derived ones."""
+        return tuple(self.attributes) + tuple(k for k in DERIVED_ATTRIBUTES if k not in self.attributes)
+
+    def attribute(self, name: str) -> np.ndarray:
+        """Per-particle values (n,) of attribute ``name``.
+
+        Besides the set's own attributes: ``log_density``, log10 of the number
+        density around each particle from the distance to its
+        :data:`DENSITY_NEIGHBOURS`-th neighbour (:func:`sparsecast.neighbours.local_density`),
+        computed once. Logarithmic because a halo's density spans several decades
+        (3.4 between the 1st and 99th percentile of the 32k-particle halo in shared data).
+        """
+        if name in self.attributes:
+            return self.attributes[name]
+        if name == "log_density":
+            if name not in self._derived:
+                self._derived[name] = (np.log10(local_density(self.centers, DENSITY_NEIGHBOURS))
+                                       if len(self) > 1 else np.zeros(len(self)))
+            return self._derived[name]
+        raise ParameterError(f"{self.name}: no attribute {name!r}; available: {', '.join(self.attribute_names)}")
 
     def __len__(self) -> int:
         return int(self.centers.shape[0])

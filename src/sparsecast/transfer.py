@@ -305,6 +305,34 @@ class TransferFunction:
         (the same array here; a label TF removes bricks without a visible id)."""
         return occupied
 
+    def with_spikes(self, values, *, keep_opacity: bool) -> "TransferFunction":
+        """A classification TF on this TF's table grid that is non-empty around ``values``.
+
+        Isosurface rendering builds its empty-space indices for it: the two table
+        entries around each isovalue get opacity 1 (values beyond the range clamp
+        to an end entry, as lookups do), so any brick whose range holds an isovalue
+        is non-empty. With ``keep_opacity`` this TF's own opacity stays too (iso+dvr).
+        Colours are not meant to be looked at.
+        """
+        table = np.array(self.table, np.float32, copy=True)
+        if not keep_opacity:
+            table[:, 3] = 0.0
+        n = self.table_size
+        for v in np.atleast_1d(np.asarray(values, np.float64)):
+            x = min(max((float(v) - self.value_range[0]) * self.scale, 0.0), n - 1.0)
+            table[int(np.floor(x)), 3] = 1.0
+            table[int(np.ceil(x)), 3] = 1.0
+        out = TransferFunction.__new__(TransferFunction)
+        out.points = self.points
+        out.value_range = self.value_range
+        out.table_size = n
+        out.unit_distance = self.unit_distance
+        out.name = f"{self.name}+iso"
+        out.table = table
+        out.table.flags.writeable = False
+        out._prefix = np.concatenate(([0], np.cumsum(table[:, 3] > 0))).astype(np.int64)
+        return out
+
     def opacity_table(self, dt: float, unit_distance: float) -> np.ndarray:
         """Table with opacity corrected for step ``dt``: ``1 - (1 - a) ** (dt / unit)``.
 

@@ -137,3 +137,22 @@ def test_bad_clip_options_are_one_error(monkeypatch, capsys, tmp_path, small_vol
     assert code == 2
     assert err.count("error:") == 1 and opt in err
     assert not (tmp_path / "c.png").exists()
+
+
+def test_iso_mode_matches_the_api(monkeypatch, capsys, tmp_path, small_volume_file):
+    vol = sc.load_volume(small_volume_file)
+    lo, hi = vol.value_range
+    values = [lo + 0.3 * (hi - lo), lo + 0.6 * (hi - lo)]
+    arr = tmp_path / "iso.npy"
+    code, out, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "24x20",
+                             "--mode", "iso+dvr", "--iso", repr(values[0]), "--iso", repr(values[1]),
+                             "--background", "transparent", "-o", str(tmp_path / "iso.png"), "--array", str(arr))
+    assert code == 0, err
+    tf = sc.TransferFunction.preset("viridis", vol.value_range)
+    ref = sc.render(vol, tf, sc.Camera.orbit(vol, 30, 20), 24, 20, background="transparent", mode="iso+dvr",
+                    iso=values)
+    assert ref.stats["shading"]  # on by default for the iso modes, from the CLI too
+    np.testing.assert_allclose(np.load(arr), ref.rgba, atol=1e-6)
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--mode", "iso",
+                           "-o", str(tmp_path / "none.png"))
+    assert code == 2 and "needs isovalues" in err and not (tmp_path / "none.png").exists()

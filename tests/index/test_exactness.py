@@ -292,3 +292,32 @@ def test_hidden_labels_skip(name, opts):
         assert img_hidden.stats["samples"] <= img_all.stats["samples"]
     else:
         assert img_hidden.stats["samples"] < 0.5 * img_all.stats["samples"], f"{name} {opts}"
+
+
+# -- issue 19, item 3: isosurfaces (and iso + DVR) --------------------------------------
+@st.composite
+def iso_scenes(draw):
+    """Sparse blobs, 1-3 isovalues (some exactly on voxel values), any camera of _cameras."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    shape = tuple(draw(st.integers(2, 34)) for _ in range(3))
+    vol = sparse_volume(rng, shape, draw(st.integers(0, 5)), spacing=(1.0, 0.8, 1.25))
+    vox = np.unique(vol.data)
+    values = [float(draw(st.sampled_from(list(vox)))) if draw(st.booleans()) else draw(st.floats(0.02, 0.98))
+              for _ in range(draw(st.integers(1, 3)))]
+    colors = [(0.9, 0.5, 0.2, draw(st.sampled_from([1.0, 0.4]))) for _ in values]
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.5)
+    cams = _cameras(vol)
+    return vol, tf, cams[draw(st.sampled_from(sorted(cams)))], values, colors
+
+
+@pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
+@settings(max_examples=10, deadline=None)
+@given(data=iso_scenes(), mode=st.sampled_from(["iso", "iso+dvr"]))
+def test_property_iso_equal_naive(name, opts, data, mode):
+    vol, tf, cam, values, colors = data
+    # render(mode=...) is the iso mode here; the BIH's build mode "ess" is its default.
+    opts = {k: v for k, v in opts.items() if not (k == "mode" and v == "ess")}
+    ref = sc.render(vol, tf, cam, 12, 10, index="naive", mode=mode, iso=values, iso_colors=colors, dt=0.5)
+    img = sc.render(vol, tf, cam, 12, 10, index=name, mode=mode, iso=values, iso_colors=colors, dt=0.5, **opts)
+    diff = np.abs(img.rgba - ref.rgba).max()
+    assert diff <= ATOL, f"{name} {opts} {mode}: max abs diff {diff:.3g} vs naive"

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from sparsecast.errors import FileFormatError
-from sparsecast.io.meshes import load_mesh, load_points
+from sparsecast.io.meshes import load_mesh, load_points, load_surface
 from sparsecast.surface.mesh import DEGENERATE_FRACTION, DegenerateFacesWarning, MeshDataError, PointCloud, TriangleMesh
 
 TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
@@ -118,3 +118,47 @@ def test_point_clouds_from_npy_and_ply(tmp_path):
         warnings.simplefilter("ignore")
         cloud = load_points(tmp_path / "tet.ply")
     assert len(cloud.points) == 4 and cloud.normals is not None
+
+
+def test_points_without_normals_get_estimated_normals(tmp_path, rng):
+    u = rng.normal(size=(400, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    trimesh.PointCloud(u).export(tmp_path / "scan.ply")  # vertices only, as a raw range scan
+    np.save(tmp_path / "scan.npy", u)
+    for name in ("scan.ply", "scan.npy"):
+        cloud = load_points(tmp_path / name)
+        assert cloud.normals_estimated
+        assert np.sum(cloud.normals * u, axis=1).min() > 0.95
+    np.save(tmp_path / "two.npy", u[:2])
+    with pytest.raises(MeshDataError, match="at least 3"):
+        load_points(tmp_path / "two.npy")
+    np.save(tmp_path / "n.npy", np.c_[u, u])
+    assert not load_points(tmp_path / "n.npy").normals_estimated
+
+
+def test_ascii_ply_normals_are_read(tmp_path):
+    (tmp_path / "a.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float nx\nproperty float ny\nproperty float nz\nend_header\n"
+        "0 0 0 0 0 1\n1 0 0 0 1 0\n0 1 0 1 0 0\n")
+    cloud = load_points(tmp_path / "a.ply", radius=0.5)
+    assert not cloud.normals_estimated
+    np.testing.assert_allclose(cloud.normals, [[0, 0, 1], [0, 1, 0], [1, 0, 0]])
+
+
+def test_load_surface_tells_points_from_meshes(tmp_path, rng):
+    trimesh.Trimesh(TET_V, TET_F, process=False).export(tmp_path / "tet.ply")
+    trimesh.PointCloud(rng.normal(size=(50, 3))).export(tmp_path / "pts.ply")
+    assert isinstance(load_surface(tmp_path / "tet.ply"), TriangleMesh)
+    cloud = load_surface(tmp_path / "pts.ply", radius=0.2)
+    assert isinstance(cloud, PointCloud) and len(cloud.points) == 50 and cloud.normals_estimated
+    assert np.all(cloud.radii == 0.2)
+
+
+def test_shared_scans_load_as_points(shared_data_dir):
+    for name, n in (("bunny_scan_bun000_40k_points.ply", 40256), ("dark_matter_halo_32k_points.ply", 32314)):
+        path = shared_data_dir / name
+        if not path.is_file():
+            pytest.skip("shared data not present")
+        cloud = load_surface(path)
+        assert isinstance(cloud, PointCloud) and len(cloud.points) == n and cloud.normals_estimated

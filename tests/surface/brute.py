@@ -36,3 +36,23 @@ def rays_at(points: np.ndarray, rng: np.random.Generator, distance: float, jitte
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     target = points + jitter * rng.normal(size=points.shape)
     return target - distance * d, d
+
+
+def brute_force_disc_hits(centers: np.ndarray, normals: np.ndarray, radii: np.ndarray,
+                          origins: np.ndarray, dirs: np.ndarray, chunk: int = 64):
+    """Closest ``t`` (inf on a miss) and disc of each ray against every disc (two-sided)."""
+    c, n, r = (np.asarray(a, np.float64) for a in (centers, normals, radii))
+    t_out = np.full(len(origins), np.inf)
+    k_out = np.full(len(origins), -1)
+    for s in range(0, len(origins), chunk):
+        o = origins[s:s + chunk, None, :]
+        d = dirs[s:s + chunk, None, :]
+        den = np.sum(d * n[None], -1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.sum((c[None] - o) * n[None], -1) / den
+        p = o + t[..., None] * d - c[None]
+        ok = (den != 0) & (t >= 0) & (np.sum(p * p, -1) <= r[None] ** 2)
+        t = np.where(ok, t, np.inf)
+        t_out[s:s + chunk] = t.min(1)
+        k_out[s:s + chunk] = np.where(np.isfinite(t.min(1)), t.argmin(1), -1)
+    return t_out, k_out

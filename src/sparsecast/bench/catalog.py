@@ -50,6 +50,30 @@ def _shared(file: str) -> Callable[[], Volume]:
     return load
 
 
+# The other volumes of the shared data folder (its MANIFEST.md): name, file, what, and
+# the colour-map threshold (fraction of the range below which the TF is transparent)
+# that leaves air, noise and background empty. Opt-in for a plain `sparsecast bench`
+# (the quick suite stays short); the paper suite takes every shared file.
+_SHARED_VOLUMES = (
+    ("bonsai", "bonsai_256x256x256_uint8.nrrd", "CT of a bonsai tree, 256^3 uint8", 0.2),
+    ("aneurism", "aneurism_256x256x256_uint8.nrrd", "rotational angiography of an aneurism, 256^3 uint8", 0.2),
+    ("tooth", "tooth_103x94x161_uint8.nrrd", "CT of a tooth, 103x94x161 uint8 (noisy background)", 0.4),
+    ("neghip", "neghip_64x64x64_uint8.nrrd", "negative-potential field of a protein, 64^3 uint8", 0.2),
+    ("avm-cta", "avm_cta_337x319x154_uint8.nrrd", "CT angiography, 337x319x154 uint8, anisotropic", 0.3),
+    ("chest-ct", "lidc2_chest_ct_256x256x133_uint8.nrrd", "chest CT (LIDC), 256x256x133 uint8", 0.3),
+    ("headsq", "headsq_ct_64x64x93_uint16.nrrd", "12-bit head CT in uint16, 64x64x93", 0.3),
+    ("density-1jzv", "density_1jzv_76x96x70_float32.nrrd", "electron density map, 76x96x70 float32", 0.3),
+)
+
+
+def _shared_volume(name: str, file: str, what: str, threshold: float) -> BenchDataset:
+    return BenchDataset(
+        name, f"{what} (shared data)", _shared(file),
+        lambda v, t=threshold: TransferFunction.preset("viridis", v.value_range, threshold=t),
+        file=file, default=False,
+    )
+
+
 DATASETS: dict[str, BenchDataset] = {
     d.name: d
     for d in (
@@ -83,6 +107,7 @@ DATASETS: dict[str, BenchDataset] = {
             lambda v: TransferFunction.preset("bone", v.value_range),
             file="mni152_t1_197x233x189_uint8.nrrd",
         ),
+        *(_shared_volume(*row) for row in _SHARED_VOLUMES),
     )
 }
 

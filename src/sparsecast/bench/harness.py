@@ -1,6 +1,9 @@
 """The benchmark runner: datasets x TFs x methods x image sizes x views, then peers and sections.
 
-One record per measurement (warm-up excluded, median of N). Records go to a
+One record per measurement (warm-up excluded, median of N). The frames of one
+scene (dataset, TF, size, view) are timed in interleaved rounds, every method and
+peer in turn (A B C A B C ...), so that all of them see the same machine; each
+render record holds its raw runs, spread, CPU time and cores busy. Records go to a
 :class:`~sparsecast.bench.progress.ResultStore` as they are taken, so a long run
 can be interrupted and resumed: finished cases are skipped, not re-measured.
 What a run measures is a :class:`~.config.BenchConfig`; which cases that makes is
@@ -34,7 +37,7 @@ from .plan import CasePlan, Key, build_key, classify_key, dataset_key, render_ke
 from .progress import Progress, ResultStore
 from .ratios import add_ratios
 from .suites import view_name
-from .timing import median_ms
+from .timing import Frame, interleaved, median_ms
 
 __all__ = ["run_benchmarks", "finished_records"]
 
@@ -60,8 +63,9 @@ def run_benchmarks(
     ``build_cold`` (first build on a volume, per-volume precomputation included),
     ``rebuild`` (what a TF edit costs), and one ``render`` per image size and view
     with samples taken, the oracle count of samples in non-empty space and, for
-    approximate indices, the PSNR against the naive image. Then one ``render`` per
-    peer, size and view (PSNR against our naive image), the sections (``irt``,
+    approximate indices, the PSNR against the naive image; the peers render their
+    views in the same interleaved rounds (PSNR against our naive image). Then the
+    sections (``irt``,
     ``bih``, ``surface``...), and finally the ratios of :func:`~.ratios.add_ratios`.
 
     Parameters
@@ -264,23 +268,37 @@ class _TfCases:
         return self._reference[key]
 
     def run(self) -> None:
+        """Build every method, set every peer up, then time the frames of each (size,
+        view) in interleaved rounds (:func:`~.timing.interleaved`)."""
         run, ds, tf_name = self.runner, self.ds, self.tf_name
         key = classify_key(ds, tf_name)
         if not run.done(key):
             bricks = self.vol.brick_stats(8)
             ms, runs, nonempty = median_ms(lambda: self.tf.classify(bricks.vmin, bricks.vmax), self.cfg.repeat, 1)
             run.record(**key, ms=ms, ms_runs=runs, occupancy=float(np.mean(nonempty)), bricks=int(nonempty.size))
+        indices: dict[str, tuple[str, Any]] = {}
         for spec, method, opts in run.methods:
             if not run.all_done(run.plan.method_keys(ds, tf_name, spec)):
-                self.method(spec, method, opts)
+                indices[spec] = (method, self.build(spec, method, opts))
+        scenes: dict[str, Any] = {}
         for peer, module in run.peers:
             if not run.all_done(run.plan.render_keys(ds, tf_name, peer, peer=True)):
-                self.peer(peer, module)
+                scene = self.peer_scene(peer, module)
+                if scene is not None:
+                    scenes[peer] = scene
+        peer_views = run.plan.views_for(tf_name, peer=True)
+        for w, h in self.cfg.sizes:
+            for i, view in enumerate(run.plan.views_for(tf_name)):
+                self.frames(w, h, i, view, indices, scenes if view in peer_views else {})
+        for scene in scenes.values():  # e.g. pyvista's OpenGL context
+            close = getattr(scene, "close", None)
+            if close is not None:
+                close()
 
-    def method(self, spec: str, method: str, opts: dict[str, Any]) -> None:
+    def build(self, spec: str, method: str, opts: dict[str, Any]) -> Any:
+        """Time ``build_cold`` and ``rebuild`` (unless journaled) and return the index."""
         run, cfg, ds, tf_name, vol, tf = self.runner, self.cfg, self.ds, self.tf_name, self.vol, self.tf
-        say = run.progress.say
-        say(f"{ds}/{tf_name}: {spec} build")
+        run.progress.say(f"{ds}/{tf_name}: {spec} build")
         key = build_key(ds, tf_name, spec, "build_cold")
         if not run.done(key):
             # A fresh Volume object per run: no cached brick statistics.
@@ -292,60 +310,69 @@ class _TfCases:
             ms, runs, index = median_ms(lambda: build_index(vol, tf, method, **opts), cfg.repeat, cfg.warmup)
             run.record(**key, ms=ms, ms_runs=runs, bytes=index.stats()["bytes"], index_stats=index.stats(),
                        exact=bool(index.exact))
-        else:
-            index = build_index(vol, tf, method, **opts)
-        for w, h in cfg.sizes:
-            for i, view in enumerate(run.plan.views_for(tf_name)):
-                key = render_key(ds, tf_name, spec, (w, h), view)
-                if run.done(key):
-                    continue
-                name = key["view"]
-                say(f"{ds}/{tf_name}: {spec} {w}x{h} {name}")
-                cam = self.camera(view)
-                ms, runs, img = median_ms(lambda: render(vol, tf, cam, w, h, dt=self.dt, index=index),
-                                          cfg.repeat, cfg.warmup)
-                extra: dict[str, Any] = {}
-                if method == "naive":
-                    self._reference[(w, h, name)] = img.rgba[..., :3].astype(np.float16)
+            return index
+        return build_index(vol, tf, method, **opts)
+
+    def peer_scene(self, peer: str, module: Any) -> Any:
+        """The peer's scene of this volume and TF, or None (noted) when it cannot take it."""
+        run = self.runner
+        run.progress.say(f"{self.ds}/{self.tf_name}: {peer} setup")
+        try:
+            return module.Scene(self.vol, self.tf, self.dt)
+        except Exception as exc:  # a peer that cannot take this volume is a note, not a crash
+            run.skip(peer, "peer", f"{self.ds}/{self.tf_name}: {type(exc).__name__}: {exc}")
+            return None
+
+    def frames(self, w: int, h: int, i: int, view: tuple[float, float],
+               indices: dict[str, tuple[str, Any]], scenes: dict[str, Any]) -> None:
+        """One scene (size, view): every method and peer not yet journaled takes turns,
+        a warm-up round first (compiles, peer set-up), then ``repeat`` timed rounds."""
+        run, cfg, ds, tf_name, vol, tf = self.runner, self.cfg, self.ds, self.tf_name, self.vol, self.tf
+        cam = self.camera(view)
+        keys = {name: render_key(ds, tf_name, name, (w, h), view) for name in [*indices, *scenes]}
+        todo = {name: k for name, k in keys.items() if not run.done(k)}
+        if not todo:
+            return
+        name = view_name(view)
+        run.progress.say(f"{ds}/{tf_name}: {w}x{h} {name}: {', '.join(todo)} interleaved")
+        frames: dict[str, Frame] = {}
+        for spec in todo:
+            if spec in indices:
+                index = indices[spec][1]
+                # Ours: the wall time of render() (image allocation included).
+                frames[spec] = lambda index=index: (render(vol, tf, cam, w, h, dt=self.dt, index=index), None)
+            else:
+                # Peers: their own frame time (the render call, pixel read-back excluded
+                # unless the peer says otherwise); CPU and cores busy around the whole call.
+                frames[spec] = lambda scene=scenes[spec]: scene.render(cam, w, h)
+        timed = interleaved(frames, cfg.repeat, max(cfg.warmup, 1))
+        if "naive" in timed:
+            self._reference[(w, h, name)] = timed["naive"].result.rgba[..., :3].astype(np.float16)
+        for spec, runs in timed.items():
+            extra: dict[str, Any] = {}
+            if spec in indices:
+                method, index = indices[spec]
+                img = runs.result
                 if not index.exact:
                     extra["psnr_vs_naive"] = psnr(img.rgba, self.reference(w, h, view))
                 if method == "naive" and i == 0 and cfg.images_dir is not None:
                     path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, "sparsecast")
                     extra["image"] = str(save_png(img.rgba, path))
-                run.record(**key, ms=ms, ms_runs=runs,
+                run.record(**todo[spec], **runs.fields(), interleaved_with=list(timed),
                            samples=img.stats["samples"], samples_nonempty=img.stats["samples_nonempty"],
                            bytes=index.stats()["bytes"], dt=img.stats["dt"], exact=bool(index.exact), **extra)
-
-    def peer(self, peer: str, module: Any) -> None:
-        run, cfg, ds, tf_name = self.runner, self.cfg, self.ds, self.tf_name
-        run.progress.say(f"{ds}/{tf_name}: {peer} setup")
-        try:
-            scene = module.Scene(self.vol, self.tf, self.dt)
-        except Exception as exc:  # a peer that cannot take this volume is a note, not a crash
-            run.skip(peer, "peer", f"{ds}/{tf_name}: {type(exc).__name__}: {exc}")
-            return
-        for w, h in cfg.sizes:
-            for i, view in enumerate(run.plan.views_for(tf_name, peer=True)):
-                key = render_key(ds, tf_name, peer, (w, h), view)
-                if run.done(key):
-                    continue
-                name = key["view"]
-                run.progress.say(f"{ds}/{tf_name}: {peer} {w}x{h} {name}")
-                cam = self.camera(view)
-                for _ in range(max(cfg.warmup, 1)):  # the first frame also sets the peer up
-                    scene.render(cam, w, h)
-                cpu0, wall0 = time.process_time(), time.perf_counter()
-                frames = [scene.render(cam, w, h) for _ in range(cfg.repeat)]
-                # CPU time over wall time: how many cores the peer kept busy (all threads).
-                cores = (time.process_time() - cpu0) / max(time.perf_counter() - wall0, 1e-9)
-                timed = [ms for _, ms in frames]
-                rgba = frames[-1][0]
-                extra: dict[str, Any] = {"psnr_vs_naive": psnr(rgba, self.reference(w, h, view)),
-                                         "cores_busy": round(cores, 2)}
+            else:
+                scene = scenes[spec]
+                rgba = runs.result
+                extra["psnr_vs_naive"] = psnr(rgba, self.reference(w, h, view))
+                samples = getattr(scene, "samples", None)
+                if samples is not None:  # a peer that knows (or estimates) its sample count
+                    extra["samples"] = samples(cam, w, h)
+                extra.update(getattr(scene, "info", {}))  # e.g. which OpenGL renderer ran
                 if i == 0 and cfg.images_dir is not None:
-                    path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, peer)
+                    path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, spec)
                     extra["image"] = str(save_png(rgba, path))
-                run.record(**key, ms=float(np.median(timed)), ms_runs=timed, dt=self.dt,
+                run.record(**todo[spec], **runs.fields(), interleaved_with=list(timed), dt=self.dt,
                            peer=True, exact=False, **extra)
 
 

@@ -94,8 +94,11 @@ def markdown_report(
     ]
     if rows:
         out += [
-            f"Image sizes {', '.join(sizes)}; frame time = median over up to {views} orbit views; "
-            "every ratio compares two measurements of this same run (timings on a shared "
+            f"Image sizes {', '.join(sizes)}; per view, every method and peer renders in turn "
+            f"(A B C A B C ...): a warm-up round, then {_rounds(records)} timed rounds, whose median "
+            f"is the view's frame time; frame time = median over up to {views} orbit views; "
+            f"cycles / sample = CPU time (all threads) x the nominal clock ({_clock(m)}) / samples; "
+            "every ratio compares two medians of the same interleaved rounds (timings on a shared "
             "machine vary by about ±20 % between runs). *Work efficiency* = samples taken / "
             "samples in non-empty space (the oracle; 1.0 is a perfect skipper). "
             "*Rebuild* = building the index again after a TF change (per-volume brick "
@@ -187,6 +190,17 @@ def _sweeps(rows: list[RenderRow], records: list[Record]) -> list[str]:
         ["dataset", "non-empty bricks", "naive ms"] + [f"`{m}`" for m in methods], table) + [""]
 
 
+def _rounds(records: list[Record]) -> str:
+    """The timed rounds per view in these records (e.g. ``3``, or ``1/3`` for a mixed journal)."""
+    counts = sorted({len(r["ms_runs"]) for r in records if r.get("phase") == "render" and r.get("ms_runs")
+                     and not r.get("section")})
+    return "/".join(map(str, counts)) or "?"
+
+
+def _clock(m: dict[str, Any]) -> str:
+    return f"{m['clock_ghz']:.2f} GHz from {m.get('clock_source')}" if m.get("clock_ghz") else "unknown"
+
+
 def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
     peer_recs = [r for r in records if r.get("phase") == "render" and r.get("peer")]
     if not peer_recs:
@@ -202,6 +216,8 @@ def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
         table.append([p.dataset, p.tf, p.size, p.method, str(p.views), _ms(p.ms), _f(cores, ".1f"),
                       f"`{best.method}` {_ms(best.ms)}" if best else "–",
                       _f(peer_ratio(records, p.dataset, p.tf, p.method, p.width, p.height), ".1f", "×"),
+                      _f(peer_ratio(records, p.dataset, p.tf, p.method, p.width, p.height, "samples_vs_naive"),
+                         ".2f", "×"),
                       _f(p.psnr, ".1f", " dB"), f"`{Path(image).name}`" if image else "–"])
     folders = sorted({rel(Path(r["image"]).parent) for r in records if r.get("image") and r.get("peer")})
     where = (" The images (ours as `*_sparsecast.png`, rendered by the naive marcher) are in "
@@ -211,9 +227,12 @@ def _peers(rows: list[RenderRow], records: list[Record], rel) -> list[str]:
             "with the same unit distance). PSNR: the peer's image against our naive image — an "
             "honesty check that the cases match, not a claim of equality (VTK quantises "
             "scalars to 15 bits; yt samples cell-centred data per cell crossing). *Cores busy*: the "
-            "peer's CPU time / wall time while timed (we use every core through Numba)." + where, ""] + _table(
+            "peer's CPU time / wall time while timed, measured for ours the same way. *Samples / "
+            "naive*: for a peer that reports them (yt: `num_samples` per cell crossing, estimated "
+            "from the rays' cell crossings), its samples over our naive marcher's on the same "
+            "view." + where, ""] + _table(
         ["dataset", "TF", "size", "peer", "views", "peer frame ms", "cores busy", "our best (ms)",
-         "peer / our best", "PSNR vs naive", "image"], table, "lllllrrrrrl") + [""]
+         "peer / our best", "samples / naive", "PSNR vs naive", "image"], table, "lllllrrrrrrl") + [""]
 
 
 def _approximate(rows: list[RenderRow]) -> list[str]:

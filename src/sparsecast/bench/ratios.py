@@ -17,8 +17,12 @@ def add_ratios(records: Iterable[Record]) -> None:
 
     ``speedup_vs_naive`` (naive ms / ms, same dataset, TF, size and view),
     ``msamples_per_s``, ``samples_vs_oracle`` (samples taken / samples in non-empty
-    space: 1 is a perfect skipper) and, for peers, ``ratio_to_best`` (peer ms /
-    ms of our fastest exact index on the same case: above 1 means we are faster).
+    space: 1 is a perfect skipper), ``cycles_per_sample`` (median CPU ms of a frame,
+    all threads, times the machine's nominal clock, over the samples: nominal, see
+    :func:`~.machine.nominal_clock_ghz`) and, for peers, ``ratio_to_best`` (peer ms /
+    ms of our fastest exact index on the same case, both medians of the same
+    interleaved rounds: above 1 means we are faster) and, where the peer reports its
+    samples, ``samples_vs_naive`` (its samples / our naive marcher's on that case).
     """
     recs = [r for r in records if r.get("phase") == "render" and not r.get("section")]
 
@@ -26,6 +30,7 @@ def add_ratios(records: Iterable[Record]) -> None:
         return (r["dataset"], r["tf"], r["view"], r.get("width"), r.get("height"))
 
     naive = {case(r): r["ms"] for r in recs if r["method"] == "naive"}
+    naive_samples = {case(r): r.get("samples") for r in recs if r["method"] == "naive"}
     best: dict[tuple, float] = {}
     for r in recs:
         if not r.get("peer") and r.get("exact", True) and r["ms"]:
@@ -36,6 +41,11 @@ def add_ratios(records: Iterable[Record]) -> None:
         samples, ne = r.get("samples"), r.get("samples_nonempty")
         r["msamples_per_s"] = samples / r["ms"] / 1e3 if samples and r["ms"] else None
         r["samples_vs_oracle"] = samples / ne if samples and ne else None
+        clock = (r.get("machine") or {}).get("clock_ghz")
+        cpu = r.get("cpu_ms")
+        r["cycles_per_sample"] = cpu * 1e-3 * clock * 1e9 / samples if samples and cpu and clock else None
         if r.get("peer"):
             b = best.get(case(r))
             r["ratio_to_best"] = r["ms"] / b if b else None
+            ns = naive_samples.get(case(r))
+            r["samples_vs_naive"] = samples / ns if samples and ns else None

@@ -23,14 +23,18 @@ def _fmt(v: Any, spec: str) -> str:
 
 
 def format_table(records: list[dict[str, Any]]):
-    """A :class:`rich.table.Table` with one row per record."""
+    """A :class:`rich.table.Table` with one row per record.
+
+    Render rows show the median frame ms of the interleaved rounds, the min-max of
+    the timed runs, cores busy (CPU / wall) and cycles per sample (CPU time at the
+    nominal clock over the samples taken); the raw runs are in the JSON."""
     from rich.table import Table
 
     table = Table(title="sparsecast bench", show_lines=False)
     for col, justify in (
         ("dataset", "left"), ("tf", "left"), ("method", "left"), ("phase", "left"), ("view", "left"),
-        ("ms (median)", "right"), ("M samples", "right"), ("M samples/s", "right"),
-        ("samples / oracle", "right"), ("vs naive", "right"), ("bytes", "right"), ("notes", "left"),
+        ("ms (median)", "right"), ("min-max", "right"), ("cores busy", "right"), ("M samples", "right"),
+        ("M samples/s", "right"), ("cycles / sample", "right"), ("samples / oracle", "right"), ("vs naive", "right"), ("bytes", "right"), ("notes", "left"),
     ):
         table.add_column(col, justify=justify)  # type: ignore[arg-type]
     for r in records:
@@ -42,24 +46,44 @@ def format_table(records: list[dict[str, Any]]):
         if r.get("psnr_vs_naive") is not None:
             notes.append(f"PSNR {r['psnr_vs_naive']:.1f} dB vs naive")
         if r.get("ratio_to_best") is not None:
-            notes.append(f"{r['ratio_to_best']:.1f}x our best")
+            notes.append(f"{r['ratio_to_best']:.1f}x our best"
+                         + (f" taking {r['samples_vs_naive']:.2f}x naive's samples"
+                            if r.get("samples_vs_naive") is not None else ""))
         if r.get("occupancy") is not None:
             notes.append(f"occupancy {100 * r['occupancy']:.1f}% of {r['bricks']} bricks")
         if r.get("table_size") is not None:
             notes.append(f"{r['table_size']} entries" + (f", {r['queries']} ranges" if r.get("queries") else ""))
         if r["phase"] == "render" and r.get("width"):
             notes.append(f"{r['width']}x{r['height']}" + (f" dt={r['dt']:g}" if r.get("dt") else ""))
+        spec = ".3f" if (r.get("ms") or 0) < 10 else ".1f"
         table.add_row(
             str(r.get("dataset") or ""), r.get("tf") or "", r.get("method") or "", r["phase"] or "",
-            r.get("view") or "", _fmt(r.get("ms"), ".3f" if (r.get("ms") or 0) < 10 else ".1f"),
+            r.get("view") or "", _fmt(r.get("ms"), spec),
+            f"{_fmt(r['ms_min'], spec)}-{_fmt(r['ms_max'], spec)}" if r.get("ms_min") is not None else "",
+            _fmt(r.get("cores_busy"), ".2f"),
             _fmt(None if r.get("samples") is None else r["samples"] / 1e6, ".2f"),
-            _fmt(r.get("msamples_per_s"), ".1f"),
+            _fmt(r.get("msamples_per_s"), ".1f"), _fmt(r.get("cycles_per_sample"), ".0f"),
             _fmt(r.get("samples_vs_oracle"), ".1f"),
             _fmt(r.get("speedup_vs_naive"), ".2f"),
             _fmt(r.get("bytes"), ",d"),
             "; ".join(notes),
         )
+    table.caption = _timing_caption(records)
     return table
+
+
+def _timing_caption(records: list[dict[str, Any]]) -> str:
+    """How the render figures were taken (rounds, spread, clock)."""
+    renders = [r for r in records if r.get("phase") == "render" and r.get("ms_runs") and not r.get("section")]
+    if not renders:
+        return ""
+    rounds = sorted({len(r["ms_runs"]) for r in renders})
+    m = renders[0].get("machine") or {}
+    clock = (f"{m['clock_ghz']:.2f} GHz nominal ({m.get('clock_source')})" if m.get("clock_ghz")
+             else "unknown clock: no cycles")
+    return (f"frame ms: median of {'/'.join(map(str, rounds))} interleaved rounds (methods and peers in turn, "
+            f"after a warm-up round); min-max of those runs; cores busy = CPU / wall; "
+            f"cycles / sample = CPU time x {clock} / samples")
 
 
 def format_summary(records: list[dict[str, Any]]):
@@ -71,13 +95,23 @@ def format_summary(records: list[dict[str, Any]]):
 
     rows, peers = best_rows(records)
     table = Table(title="sparsecast bench: best index per dataset (details in the report / JSON)")
-    for col in ["dataset", "tf", "size", "best", "frame ms", "x naive", "samples / oracle", "rebuild ms",
-                *[f"x {p}" for p in peers]]:
+    for col in ["dataset", "tf", "size", "best", "frame ms", "spread %", "cores busy", "cycles / sample",
+                "x naive", "samples / oracle", "rebuild ms", *[f"x {p}" for p in peers]]:
         table.add_column(col, justify="left" if col in ("dataset", "tf", "size", "best") else "right")
     for b in rows:
+        vs = []
+        for p in peers:
+            cell = _fmt(b.vs_peers[p], ".1f")
+            if b.peer_samples.get(p) is not None:  # a peer taking other samples than ours says so
+                cell += f" ({b.peer_samples[p]:.2f}x samples)"
+            vs.append(cell)
         table.add_row(b.dataset, b.tf, f"{b.width}x{b.height}", b.best.method, _fmt(b.best.ms, ".1f"),
+                      _fmt(b.best.spread_pct, ".0f"), _fmt(b.best.cores_busy, ".2f"),
+                      _fmt(b.best.cycles_per_sample, ".0f"),
                       _fmt(b.best.speedup_vs_naive, ".1f"), _fmt(b.best.work_efficiency, ".2f"),
-                      _fmt(b.rebuild_ms, ".2f"), *[_fmt(b.vs_peers[p], ".1f") for p in peers])
+                      _fmt(b.rebuild_ms, ".2f"), *vs)
+    table.caption = _timing_caption(records) + (
+        "; spread % = (max - min) / median of the timed runs, median over views" if rows else "")
     return table
 
 

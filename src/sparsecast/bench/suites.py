@@ -3,10 +3,13 @@
 - ``quick``: the everyday run (what a plain ``sparsecast bench`` does), about a
   minute on two cores (each suite's measured ``duration`` is kept on it).
 - ``paper``: the papers' evaluation: every shared volume and the generated n-body
-  fields at 128^3 / 256^3 / 512^3, every registered index, 512^2 and 1024^2, the
-  camera orbiting in fixed steps around the three axes, sparse and dense TF, the
-  installed peers (VTK, yt) and the sections of the other modules (``bih``,
-  ``surface``).
+  fields at 128^3 / 256^3 / 512^3, every registered index, 512^2 and 1024^2, one
+  view on each of the orbits around the three axes, sparse and dense TF, the
+  installed peers (VTK, yt, pyvista's GPU mapper) and the sections of the other
+  modules (``bih``, ``surface``).
+
+Every suite times each view in at least 3 interleaved rounds after a warm-up round
+(see :func:`~.timing.interleaved`).
 - ``sweep``: the synthetic cluster sweeps (hybrid-grids paper, Fig. 5) at 256^3.
 - ``bih`` / ``surface``: one section on its own.
 
@@ -80,12 +83,13 @@ class Suite:
     dense_views : int or None
         Views rendered with the dense TF (the first N; None: all).
     repeat, warmup : int
-        Timed and untimed runs per measurement (views are already many samples
-        of the frame time in the paper suite, so one timed run each is enough).
+        Timed and untimed rounds per view: every method and peer renders one frame
+        per round, in turn (at least 3 timed rounds and 1 warm-up in every suite;
+        suites with a time budget take fewer views instead).
     irt : bool
         Time the iterative range tree on TF tables.
     peers : tuple of str
-        Other renderers to run on the same cases (``vtk``, ``yt``); missing ones are skipped.
+        Other renderers to run on the same cases (``vtk``, ``yt``, ``pyvista``); missing ones are skipped.
     peer_views : int
         Views the peers render (the first N).
     sections : tuple of str
@@ -95,7 +99,8 @@ class Suite:
     duration : str or None
         Wall time of a whole run on the reference machine of the README's Performance
         section (2-core VM), as the README's suite table and ``--help`` print it;
-        None where not measured. The one place these figures live.
+        None where not measured. The one place these figures live. (Measured before
+        the interleaved rounds of the timing: to be measured again.)
     """
 
     name: str
@@ -158,35 +163,42 @@ SUITES: dict[str, Suite] = {
     for s in (
         # Three timed frames per view, and the dense TF (each index about a naive frame)
         # on one view, keep the everyday run under two minutes on two cores.
-        Suite("quick", "the demo and the shared volumes, 512^2, two views, every index",
+        Suite("quick", "the demo and MNI152 (other shared volumes: -d NAME, or --suite paper), 512^2, two views, "
+              "every index",
               short="the default run", duration="70 s", repeat=3, dense_views=1),
         Suite(
             "paper",
             "every shared volume and the n-body fields at 128^3/256^3/512^3, every index, "
-            "512^2 and 1024^2, orbits around x, y, z, sparse + dense TF, peers, BIH and RBVH sections",
+            "512^2 and 1024^2, one view on each orbit around x, y, z (3 timed rounds and a warm-up "
+            "per view, interleaved), sparse + dense TF, peers, BIH and RBVH sections",
             short="the papers' evaluation",
             duration="13.8 min",
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
-            views=tuple(orbit_views(4)),
+            # Budget (2 cores, ~30 min): 4 frames (warm-up + 3 rounds) on 3 views cost what
+            # 1 frame on each of the 12 orbit views did; one view per axis circle keeps the
+            # three orbits. The dense TF (every index about a naive frame) and the peers 1 view.
+            views=tuple(orbit_views(4)[::4]),
             index_modes=True,
-            # Budget (2 cores, under 30 min): 12 views with the sparse TF; with the dense one
-            # every index costs about a naive frame, which 2 views show; peers 1 view.
-            dense_views=2,
+            dense_views=1,
             peer_views=1,
-            repeat=1,
-            warmup=0,
-            peers=("vtk", "yt"),
+            repeat=3,
+            warmup=1,
+            peers=("vtk", "yt", "pyvista"),
             sections=("bih", "surface"),
         ),
-        Suite("sweep", "the synthetic cluster sweeps of Fig. 5 at 256^3 (a: growing radius, b: more clusters)",
+        # One view (not two) pays for the 3 interleaved rounds and the warm-up.
+        Suite("sweep", "the synthetic cluster sweeps of Fig. 5 at 256^3 (a: growing radius, b: more clusters), "
+              "one view, 3 timed rounds and a warm-up",
               short="Fig. 5 clusters", duration="28 s",
               datasets=tuple(n for n in DATASETS if n.startswith(("fig5a-256-", "fig5b-256-"))),
-              dense_tf=False, repeat=1, warmup=0, irt=False),
+              views=((30.0, 20.0),), dense_tf=False, repeat=3, warmup=1, irt=False),
         Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)", short="BIH section",
               datasets=(), irt=False, sections=("bih",)),
         Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
               datasets=(), irt=False, sections=("surface",)),
+        Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
+              "CT/MR volumes (bench.features)", datasets=(), irt=False, sections=("features",)),
     )
 }
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 import statistics
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = ["SWEEP", "RenderRow", "BestRow", "render_rows", "best_exact", "best_rows", "build_ms", "peer_ratio"]
@@ -38,6 +38,10 @@ class RenderRow:
         Samples taken and oracle samples per frame (mean over views).
     psnr : float or None
         Median PSNR against our naive image (approximate indices, peers).
+    spread_pct : float or None
+        Median over views of (max - min) / median of the timed runs, in %.
+    cores_busy, cycles_per_sample : float or None
+        Medians over views (CPU / wall; CPU time at the nominal clock per sample).
     """
 
     dataset: str
@@ -56,6 +60,9 @@ class RenderRow:
     psnr: float | None
     exact: bool
     peer: bool
+    spread_pct: float | None = None
+    cores_busy: float | None = None
+    cycles_per_sample: float | None = None
 
     @property
     def size(self) -> str:
@@ -90,6 +97,10 @@ def render_rows(records: list[Record]) -> list[RenderRow]:
             psnr=_median([r.get("psnr_vs_naive") for r in recs]),
             exact=bool(recs[0].get("exact", True)),
             peer=bool(recs[0].get("peer", False)),
+            spread_pct=_median([100.0 * (r["ms_max"] - r["ms_min"]) / r["ms"] for r in recs
+                                if r.get("ms_max") is not None and r["ms"]]),
+            cores_busy=_median([r.get("cores_busy") for r in recs]),
+            cycles_per_sample=_median([r.get("cycles_per_sample") for r in recs]),
         ))
     return rows
 
@@ -121,6 +132,9 @@ class BestRow:
     vs_peers : dict
         Peer name -> peer frame ms / our best frame ms on the peer's views (above 1:
         we are faster); None where the peer did not run.
+    peer_samples : dict
+        Peer name -> median over its views of its samples / our naive marcher's, for
+        peers that report samples (yt steps per cell, not per unit length).
     """
 
     dataset: str
@@ -133,11 +147,14 @@ class BestRow:
     naive_ms: float | None
     rebuild_ms: float | None
     vs_peers: dict[str, float | None]
+    peer_samples: dict[str, float | None] = field(default_factory=dict)
 
 
-def peer_ratio(records: list[Record], dataset: str, tf: str, peer: str, width: int, height: int) -> float | None:
-    """Median over the peer's views of its ``ratio_to_best`` (peer ms / our best ms on that view)."""
-    return _median([r.get("ratio_to_best") for r in records if r.get("phase") == "render"
+def peer_ratio(records: list[Record], dataset: str, tf: str, peer: str, width: int, height: int,
+               ratio: str = "ratio_to_best") -> float | None:
+    """Median over the peer's views of its ``ratio_to_best`` (peer ms / our best ms on
+    that view), or of another of its ratios (``samples_vs_naive``)."""
+    return _median([r.get(ratio) for r in records if r.get("phase") == "render"
                     and r.get("method") == peer and not r.get("section")
                     and (r["dataset"], r.get("tf"), r.get("width"), r.get("height")) == (dataset, tf, width, height)])
 
@@ -164,5 +181,6 @@ def best_rows(records: list[Record]) -> tuple[list[BestRow], list[str]]:
             best=best, naive_ms=naive.get((ds, tf, w, h)),
             rebuild_ms=builds.get((ds, tf, best.method, "rebuild"), {}).get("ms"),
             vs_peers={p: peer_ratio(records, ds, tf, p, w, h) for p in peers},
+            peer_samples={p: peer_ratio(records, ds, tf, p, w, h, "samples_vs_naive") for p in peers},
         ))
     return out, peers

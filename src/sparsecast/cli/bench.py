@@ -21,16 +21,16 @@ __all__ = ["bench"]
 
 @app.command()
 def bench(
-    suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: a 2-core machine).")] = None,
+    suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: a 2-core machine, before the interleaved timing).")] = None,
     dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's.")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[Optional[bool], typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space (default: yes).")] = None,
     size: Annotated[Optional[list[str]], typer.Option(help="Image size WIDTHxHEIGHT (repeatable); default 512x512, paper 512 and 1024.")] = None,
     views: Annotated[Optional[int], typer.Option(help="Orbit views per axis (x, y, z); default: the suite's two fixed views, paper 4.")] = None,
-    repeat: Annotated[Optional[int], typer.Option(help="Timed runs per measurement, median reported (quick 3, paper 1: views are samples too).")] = None,
-    warmup: Annotated[Optional[int], typer.Option(help="Untimed runs before timing (quick 1, paper 0).")] = None,
+    repeat: Annotated[Optional[int], typer.Option(help="Timed runs per measurement, median reported; frames in interleaved rounds (every suite 3).")] = None,
+    warmup: Annotated[Optional[int], typer.Option(help="Untimed runs before timing (every suite 1; frames take at least 1).")] = None,
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing (default half a voxel).")] = None,
-    peer: Annotated[Optional[list[str]], typer.Option("--peer", help="Peer renderer run on the same cases: vtk, yt (repeatable; 'none' for none).")] = None,
+    peer: Annotated[Optional[list[str]], typer.Option("--peer", help="Peer renderer run on the same cases: vtk, yt, pyvista (repeatable; 'none' for none).")] = None,
     peer_views: Annotated[Optional[int], typer.Option(help="Views the peers render (the first N; default 2, paper 1).")] = None,
     dense_views: Annotated[Optional[int], typer.Option(help="Views rendered with the dense TF (the first N; quick 1, paper 2).")] = None,
     section: Annotated[Optional[list[str]], typer.Option("--section", help="Extra section module: bih, surface (repeatable; 'none' for none).")] = None,

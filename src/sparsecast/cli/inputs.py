@@ -80,16 +80,17 @@ def orbit_frame(vol, file: Optional[Path], up: Optional[str], view: Optional[str
     return {"view": "anterior"} if vol.orientation is not None else {}
 
 
-def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float):
+def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float, default_range=None):
     """A preset over the volume's range (or ``tf_range``), a TF ``.json`` file
     (re-ranged only when ``tf_range`` is given; a label file is used as it is), or a
     label TF: ``labels`` (every id the volume holds but 0, distinct colours) or
-    ``labels:1,4,7`` (those ids)."""
+    ``labels:1,4,7`` (those ids). ``default_range`` replaces the volume's range as the
+    presets' default (a time series spans the range of all its steps)."""
     from ..transfer import TransferFunction
 
     if spec.lower() == "labels" or spec.lower().startswith("labels:"):
         return label_tf(spec, vol)
-    value_range = parse_pair(tf_range, "--tf-range") if tf_range else vol.value_range
+    value_range = parse_pair(tf_range, "--tf-range") if tf_range else (default_range or vol.value_range)
     if spec.lower().endswith(".json"):
         tf = TransferFunction.load(spec)
         return tf.with_range(value_range) if tf_range else tf

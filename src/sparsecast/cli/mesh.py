@@ -16,6 +16,7 @@ from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, UpOpt, ZoomOpt, app, out, warn
 from .parse import parse_size
+from ..surface.normals import DEFAULT_K as NORMALS_K
 
 __all__ = ["render_mesh", "INDICES"]
 
@@ -25,8 +26,8 @@ INDICES = ("rbvh", "bvh")
 
 @app.command("render-mesh")
 def render_mesh(
-    file: Annotated[Path, typer.Argument(help="Mesh (.ply .obj .stl .glb .off) or, with --points, a point cloud (.ply .npy).")],
-    index: Annotated[str, typer.Option(help="rbvh (approximate, height-field tiles) or bvh (exact triangles).")] = "rbvh",
+    file: Annotated[Path, typer.Argument(help="Mesh (.ply .obj .stl .glb .off) or point cloud (a .ply without faces; .npy with --points).")],
+    index: Annotated[str, typer.Option(help="rbvh (approximate, height-field tiles) or bvh (exact triangles or discs).")] = "rbvh",
     quality: Annotated[str, typer.Option(help="RBVH quality preset Q0 (finest) .. Q4 (coarsest).")] = "Q2",
     mode: Annotated[str, typer.Option(help="shaded, depth or normal.")] = "shaded",
     azimuth: AzimuthOpt = 30.0,
@@ -37,22 +38,19 @@ def render_mesh(
     up: UpOpt = None,
     y_up: Annotated[Optional[bool], typer.Option("--y-up/--z-up", hidden=True, help="Deprecated: --up y / --up z.")] = None,
     drop_degenerate: Annotated[bool, typer.Option("--drop-degenerate", help="Remove zero-area triangles (a mesh may keep up to 0.1 % of them, with a warning; more are an error without this).")] = False,
-    points: Annotated[bool, typer.Option("--points", help="Read the file as a point cloud (splatted discs; needs --index rbvh).")] = False,
+    points: Annotated[bool, typer.Option("--points", help="Read the file as a point cloud (discs), even a mesh's vertices; a PLY without faces is one anyway.")] = False,
     radius: Annotated[Optional[float], typer.Option(help="Point clouds: disc radius (default from the point spacing).")] = None,
     output: OutputOpt = Path("sparsecast-mesh.png"),
 ) -> None:
     """Render a triangle mesh (or point cloud) with an exact BVH or a rasterized BVH."""
     from ..camera import Camera
-    from ..io.meshes import load_points
-    from ..surface import build_bvh, build_rbvh, render_surface
     from ..axes import axis_vector
-    from ..surface.mesh import orient, tiny_points, warmup_mesh
+    from ..surface import PointCloud, build_bvh, build_rbvh, render_surface
+    from ..surface.mesh import orient, orient_points, tiny_points, warmup_mesh
     from ..surface.render import MODES
 
     one_of(index, "--index", INDICES)
     one_of(mode, "--mode", MODES)
-    if points and index != "rbvh":
-        raise ParameterError("--points: point clouds are rendered with --index rbvh only")
     if y_up is not None:  # the deprecated spelling of --up y / --up z
         if up is not None:
             raise ParameterError(f"--y-up/--z-up: give the up axis once, as --up (got --up {up} too)")
@@ -62,13 +60,16 @@ def render_mesh(
     width, height = parse_size(size)
     check_output(output, "-o", IMAGE_SUFFIXES)  # before any work
     t0 = time.perf_counter()
-    if points:
-        surface = load_points(file, radius=radius)
-        if axis_vector(up)[2] != 1.0:
-            raise ParameterError(f"--up {up}: only meshes can be rotated; pass z-up points")
-        what = f"{len(surface.points)} points"
+    surface, dropped = _load_surface(file, points, radius, drop_degenerate)
+    if isinstance(surface, PointCloud):
+        surface = orient_points(surface, up)
+        what = (f"{len(surface.points)} points" + ("" if points else " (no faces: rendered as points)")
+                + f", disc radius {float(surface.radii[0]):.4g}"
+                + (f", normals estimated (PCA, {NORMALS_K} neighbours)" if surface.normals_estimated else ""))
     else:
-        surface, dropped = _load_mesh(file, drop_degenerate)
+        if radius is not None:
+            raise ParameterError(f"--radius: applies to point clouds; {file.name} is a mesh "
+                                 f"of {surface.n_triangles} triangles (--points reads its vertices)")
         surface = orient(surface, up)
         what = f"{surface.n_triangles} triangles" + (f" after dropping {dropped} degenerate" if drop_degenerate else "")
     build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else build_bvh
@@ -76,7 +77,7 @@ def render_mesh(
     # them on disk), so the build time printed below is the build's, not the first
     # run's JIT compilation; render_surface does the same for its kernel.
     c0 = compile_seconds()
-    build(tiny_points() if points else warmup_mesh())
+    build(tiny_points() if isinstance(surface, PointCloud) else warmup_mesh())
     idx = build(surface)
     cam = Camera.orbit(surface, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     img = render_surface(idx, cam, width, height, mode=mode)
@@ -92,17 +93,19 @@ def render_mesh(
     )
 
 
-def _load_mesh(file: Path, drop: bool):
-    """``load_mesh`` with its warnings on stderr (one ``warning:`` line each) and its
-    advice in the command line's words (``--drop-degenerate``, not the API's argument);
-    returns the mesh and how many degenerate triangles were dropped."""
-    from ..io.meshes import load_mesh
+def _load_surface(file: Path, points: bool, radius, drop: bool):
+    """The point cloud (``--points``, or a file without faces) or mesh in ``file``, with
+    the loader's warnings on stderr (one ``warning:`` line each) and its advice in the
+    command line's words (``--drop-degenerate``, not the API's argument); returns it and
+    how many degenerate triangles were dropped."""
+    from ..io.meshes import load_points, load_surface
     from ..surface.mesh import DegenerateFacesError, DegenerateFacesWarning
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            mesh = load_mesh(file, drop_degenerate=drop)
+            mesh = (load_points(file, radius=radius) if points
+                    else load_surface(file, radius=radius, drop_degenerate=drop))
         except DegenerateFacesError as exc:
             raise DegenerateFacesError(exc.source, exc.count, exc.total, exc.first, "pass --drop-degenerate to remove them") from None
     dropped = 0

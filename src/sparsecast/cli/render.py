@@ -9,6 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.atomic import check_output
+from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
@@ -44,14 +45,26 @@ def render(
     dt: Annotated[Optional[float], typer.Option(help="Sample spacing in world units (default: half a voxel).")] = None,
     index: Annotated[str, typer.Option(help="Spatial index (see `sparsecast info --indices`), optionally with build options as NAME:KEY=VALUE[,KEY=VALUE], e.g. bih:mode=single-sample or grid-pc:cell=8; auto picks one from the volume's occupancy under the TF.")] = "auto",
     cell: CellOpt = None,
-    shade: Annotated[bool, typer.Option("--shade/--no-shade", help="Gradient (Blinn-Phong) shading.")] = False,
+    shade: Annotated[Optional[bool], typer.Option(
+        "--shade/--no-shade", help="Gradient (Blinn-Phong) shading (default: on for the iso modes, off for dvr).")] = None,
     background: Annotated[str, typer.Option(help="black, white, gray, transparent or 'r,g,b[,a]'.")] = "black",
     ert: Annotated[float, typer.Option(help="Early-ray-termination opacity (1 disables).")] = 0.99,
+    mode: Annotated[str, typer.Option(help="dvr (volume rendering), iso (isosurfaces of --iso) or iso+dvr (both, "
+                                                "in depth order).")] = "dvr",
+    iso: Annotated[Optional[list[float]], typer.Option(
+        help="Isovalue in data units for --mode iso / iso+dvr (repeat for up to 8 surfaces; "
+             "coloured by the TF at the value).")] = None,
     clip_box: Annotated[Optional[str], typer.Option(
         help="Keep only x0,y0,z0,x1,y1,z1 (world units, see `sparsecast info` for the bounds).")] = None,
     clip_plane: Annotated[Optional[list[str]], typer.Option(
         help="Keep the side of the plane px,py,pz,nx,ny,nz that the normal points to (world units; "
              "repeat for up to 6 planes).")] = None,
+    time_step: Annotated[Optional[int], typer.Option("--time", help=(
+        "Render this step of a time series: FILE is then a folder of volume files (natural order), a quoted "
+        "glob pattern or a 4-D .npy."))] = None,
+    all_times: Annotated[bool, typer.Option("--all-times", help=(
+        "Render every step of the series FILE; -o (and --array) take a %d pattern, e.g. -o frames/%04d.png."
+    ))] = False,
     output: OutputOpt = Path("sparsecast.png"),
     array: Annotated[Optional[Path], typer.Option("--array", help="Also save the float32 premultiplied RGBA as .npy.")] = None,
     dims: DimsOpt = None,
@@ -65,19 +78,41 @@ def render(
     from ..render import render as do_render
 
     width, height = parse_size(size)
+    series_mode = time_step is not None or all_times
+    if series_mode and file is None:
+        raise ParameterError("--time/--all-times: give the series as FILE (a folder, a quoted glob or a 4-D .npy)")
+    if time_step is not None and all_times:
+        raise ParameterError(f"--time {time_step} and --all-times: pick one step or all of them")
     # Every output is checked before any work: a bad --array must neither cost a render
     # nor replace -o's file before it is rejected.
-    check_output(output, "-o", IMAGE_SUFFIXES)
-    if array is not None:
-        check_output(array, "--array", {".npy"})
+    if not all_times:
+        check_output(output, "-o", IMAGE_SUFFIXES)
+        if array is not None:
+            check_output(array, "--array", {".npy"})
     # Index options are checked before any work: a typo costs no volume load.
     index_name, index_options = parse_index_spec(index)
+    if "mode" in index_options:
+        # --index bih:mode=... is the BIH's build mode, which render(mode=...) passes on.
+        if mode != "dvr":
+            raise ParameterError(f"--index {index}: the BIH's mode={index_options['mode']} is a DVR build mode; "
+                                 f"--mode {mode} builds its own (exact) index: drop one of them")
+        mode = str(index_options.pop("mode"))
     box = parse_clip_box(clip_box)
     planes = [parse_clip_plane(p) for p in clip_plane] if clip_plane else None
     if cell is not None:
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
     t0 = time.perf_counter()
+    if series_mode:
+        from .series import render_series
+
+        render_series(file, time_step, output, array, tf=tf, tf_range=tf_range, threshold=threshold,
+                      size=(width, height), orbit=(azimuth, elevation, up, view, projection, zoom),
+                      render_kw=dict(dt=dt, index=index_name, ert=ert, shading=shade,
+                                     background=parse_background(background), clip_box=box, clip_planes=planes,
+                                     mode=mode, iso=iso or None, **index_options),
+                      load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
+        return
     c0 = compile_seconds()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
     frame = orbit_frame(vol, file, up, view)
@@ -88,7 +123,8 @@ def render(
     cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
-                    background=bg, clip_box=box, clip_planes=planes, **index_options)
+                    background=bg, clip_box=box, clip_planes=planes, mode=mode, iso=iso or None,
+                    **index_options)
     img.save(output)
     if array is not None:
         img.save(array)

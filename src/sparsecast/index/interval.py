@@ -21,16 +21,20 @@ processes; a closure factory would recompile in every new process):
     prune subtrees against it (the LBVH does). Intervals may overlap, touch
     or extend past ``[t_lo, t_hi]``; the driver merges touching ones and
     clamps lattice indices to the clip.
-``integrate(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,``
-``ray, wdir, t0, t1, k_next, k_max, acc)``
+``integrate(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,``
+``shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc)``
     Composite one interval ``[t0, t1]`` onto the premultiplied ``acc = (r, g, b, a)``
     and return ``(r, g, b, a, k_next, n_samples, n_nonempty)``; ``wdir`` is the unit
-    world direction (shading). Arguments are plain arrays, scalars and tuples of
+    world direction (shading), ``[k_min, k_max]`` the lattice indices the clip
+    admits, ``mode`` the frame's mode marker (:class:`~sparsecast.kernels.march.Dvr`,
+    :class:`~sparsecast.kernels.iso.Iso`, :class:`~sparsecast.kernels.iso.IsoDvr`) and
+    ``sampler`` its :mod:`sampler <sparsecast.kernels.sampler>` marker. Arguments are plain arrays, scalars and tuples of
     scalars (no records beyond the index's own: reading arrays out of records
     costs reference-count atomics per interval), at most 30 of them: more make
     CPython pass them as ``*args``, which Numba cannot inline. The default, for every record whose class does not
     set ``LATTICE = False``, is the exact lattice march
-    (:func:`sparsecast.kernels.march.march_interval`); approximate indices (the
+    (:func:`sparsecast.kernels.march.march_interval`, or
+    :func:`sparsecast.kernels.iso.iso_interval` for the iso modes); approximate indices (the
     BIH's single- and multi-sample modes) overload it for their record.
 
 A record class may set two class attributes (read at compile time):
@@ -52,7 +56,8 @@ from __future__ import annotations
 import numpy as np
 from numba.extending import overload
 
-from ..kernels.march import march_interval
+from ..kernels.iso import Iso, IsoDvr, iso_interval
+from ..kernels.march import Dvr, march_interval
 
 __all__ = ["make_scratch", "start_ray", "next_interval", "integrate", "coalesces", "record_class"]
 
@@ -72,8 +77,8 @@ def next_interval(record, scratch, ray, state, t_covered):  # pragma: no cover
     raise NotImplementedError("next_interval is only callable from jitted code")
 
 
-def integrate(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
-              ray, wdir, t0, t1, k_next, k_max, acc):  # pragma: no cover
+def integrate(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+              shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):  # pragma: no cover
     """Composite one interval (see the module docstring)."""
     raise NotImplementedError("integrate is only callable from jitted code")
 
@@ -124,19 +129,35 @@ def _no_scratch(record):
 
 
 @overload(integrate, jit_options={"error_model": "numpy"})
-def _integrate_lattice(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
-                       shading, ray, wdir, t0, t1, k_next, k_max, acc):
+def _integrate_lattice(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing,
+                       dt, ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
     if record_class(record) is None or not _lattice(record):
         return None
+    kind = getattr(mode, "instance_class", None)
+    if kind is Dvr:
+        def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
+                 ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
+            ox, oy, oz, dx, dy, dz = ray
+            wdx, wdy, wdz = wdir
+            r, g, b, a = acc
+            return march_interval(
+                sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+                wdx, wdy, wdz, inv_spacing, dt, t0, t1, k_next, k_max, r, g, b, a, ert, shading,
+            )
 
-    def impl(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
-             shading, ray, wdir, t0, t1, k_next, k_max, acc):
-        ox, oy, oz, dx, dy, dz = ray
-        wdx, wdy, wdz = wdir
-        r, g, b, a = acc
-        return march_interval(
-            sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
-            wdx, wdy, wdz, inv_spacing, dt, t0, t1, k_next, k_max, r, g, b, a, ert, shading,
-        )
+        return impl
+    if kind is Iso:
+        def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
+                 ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
+            return iso_interval(False, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
+                                dt, t0, t1, k_next, k_min, k_max, acc, ert, shading)
 
-    return impl
+        return impl
+    if kind is IsoDvr:
+        def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
+                 ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
+            return iso_interval(True, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
+                                dt, t0, t1, k_next, k_min, k_max, acc, ert, shading)
+
+        return impl
+    return None

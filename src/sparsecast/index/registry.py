@@ -44,6 +44,7 @@ RENDER_PARAMETERS: dict[str, str] = {
     "shading": "--shade", "background": "--background", "clip_box": "render(clip_box=...)",
     "clip_open": "render(clip_open=...)", "clip_planes": "render(clip_planes=...)",
     "initial": "render(initial=...)", "rect": "render(rect=...)", "max_samples": "render(max_samples=...)",
+    "iso": "--iso", "iso_colors": "render(iso_colors=...)",
 }
 
 

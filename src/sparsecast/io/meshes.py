@@ -1,5 +1,7 @@
 """Mesh and point-cloud readers (PLY, OBJ, STL, GLB through trimesh; points from PLY/npy).
 
+:func:`load_surface` reads either: a file with vertices but no faces is a point cloud.
+
 Every error names the file: a missing or unreadable file is a
 :class:`~sparsecast.errors.FileFormatError`; readable files with unusable content
 (empty, NaN, more than 0.1 % degenerate triangles) raise
@@ -19,10 +21,11 @@ import numpy as np
 from .._util.checks import positive_float
 from ..errors import FileFormatError
 from ..surface.mesh import DegenerateFacesWarning, MeshDataError, MeshWarning, PointCloud, TriangleMesh
+from ..surface.normals import DEFAULT_K, estimate_normals
 from .files import require_regular_file
 from .npy import read_npy_array
 
-__all__ = ["load_mesh", "load_points", "MESH_SUFFIXES"]
+__all__ = ["load_mesh", "load_points", "load_surface", "MESH_SUFFIXES"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".stl", ".glb", ".gltf", ".off")
 
@@ -110,18 +113,24 @@ def load_mesh(path: str | os.PathLike, *, drop_degenerate: bool = False) -> Tria
     return mesh
 
 
-def load_points(path: str | os.PathLike, *, radius: float | None = None) -> PointCloud:
+def load_points(path: str | os.PathLike, *, radius: float | None = None,
+                normals_k: int = DEFAULT_K) -> PointCloud:
     """Read a point cloud from ``.ply`` (vertices, optional normals) or ``.npy``.
 
     A ``.npy`` file holds an ``(n, 3)`` array of points or ``(n, 6)`` of points
     and normals. A ``.ply`` mesh is read as its vertices (with vertex normals).
-    ``radius`` (positive) is the disc radius of every point.
+    ``radius`` (positive) is the disc radius of every point (default: from the
+    point spacing, :func:`~sparsecast.surface.mesh.default_disc_radius`).
+
+    A file without normals (a raw range scan, particles) gets normals estimated
+    by PCA over each point's ``normals_k`` nearest neighbours
+    (:func:`~sparsecast.surface.normals.estimate_normals`, oriented away from the
+    centroid); the cloud's ``normals_estimated`` is then True.
     """
     if radius is not None:
         radius = positive_float(radius, "radius")
     p = Path(path)
     suffix = p.suffix.lower()
-    normals = None
     if suffix == ".npy":
         a = read_npy_array(p, "NumPy .npy points")
         if a.dtype.names is not None or a.dtype.kind not in "biuf":
@@ -130,16 +139,55 @@ def load_points(path: str | os.PathLike, *, radius: float | None = None) -> Poin
             raise MeshDataError(f"{str(p)!r}: expected an (n, 3) or (n, 6) array, got shape {a.shape}")
         pts, normals = a[:, :3], (a[:, 3:] if a.shape[1] == 6 else None)
     elif suffix == ".ply":
-        import trimesh
-
-        obj = _trimesh_load(p)
-        pts = np.asarray(getattr(obj, "vertices", np.empty((0, 3))))
-        if isinstance(obj, trimesh.Trimesh) and len(obj.faces):
-            normals = np.asarray(obj.vertex_normals)
-        else:
-            attrs = getattr(obj, "metadata", {}).get("_ply_raw", {}).get("vertex", {}).get("data")
-            if attrs is not None and all(k in attrs.dtype.names for k in ("nx", "ny", "nz")):
-                normals = np.stack([attrs["nx"], attrs["ny"], attrs["nz"]], 1).astype(np.float64)
+        pts, normals = _ply_points(_trimesh_load(p))
     else:
         raise FileFormatError(f"{str(p)!r}: unsupported point-cloud suffix {suffix!r}; expected .ply or .npy")
-    return PointCloud(pts, normals, radius, source=str(p))
+    return _cloud(pts, normals, radius, str(p), normals_k)
+
+
+def load_surface(path: str | os.PathLike, *, radius: float | None = None,
+                 normals_k: int = DEFAULT_K, drop_degenerate: bool = False) -> TriangleMesh | PointCloud:
+    """A triangle mesh, or a point cloud when the file holds vertices but no faces.
+
+    What ``sparsecast render-mesh`` reads: a PLY of points (a range scan, a particle
+    dump) is rendered as discs rather than refused. ``radius`` and ``normals_k``
+    apply to point clouds only (see :func:`load_points`); meshes load as
+    :func:`load_mesh` loads them (``drop_degenerate`` too).
+    """
+    import trimesh
+
+    p = Path(path)
+    obj = _trimesh_load(p)
+    if isinstance(obj, trimesh.PointCloud):
+        pts, normals = _ply_points(obj)
+        return _cloud(pts, normals, positive_float(radius, "radius") if radius is not None else None,
+                      str(p), normals_k)
+    return load_mesh(p, drop_degenerate=drop_degenerate)
+
+
+def _ply_points(obj) -> tuple[np.ndarray, np.ndarray | None]:
+    import trimesh
+
+    pts = np.asarray(getattr(obj, "vertices", np.empty((0, 3))))
+    normals = None
+    if isinstance(obj, trimesh.Trimesh) and len(obj.faces):
+        normals = np.asarray(obj.vertex_normals)
+    else:
+        attrs = getattr(obj, "metadata", {}).get("_ply_raw", {}).get("vertex", {}).get("data")
+        # binary PLY: a structured array; ASCII PLY: a dict of columns
+        names = attrs.keys() if isinstance(attrs, dict) else (getattr(getattr(attrs, "dtype", None), "names", None) or ())
+        if all(k in names for k in ("nx", "ny", "nz")):
+            normals = np.stack([np.asarray(attrs[k], np.float64).reshape(-1) for k in ("nx", "ny", "nz")], 1)
+    return pts, normals
+
+
+def _cloud(pts, normals, radius, source: str, normals_k: int) -> PointCloud:
+    estimated = normals is None
+    if estimated:
+        # Validate the points first: NaN or an empty file is the error to report,
+        # not what PCA makes of it.
+        pts = PointCloud(pts, None, 1.0, source).points
+        if len(pts) < 3:
+            raise MeshDataError(f"{source}: {len(pts)} points and no normals; estimating normals needs at least 3")
+        normals = estimate_normals(pts, normals_k)
+    return PointCloud(pts, normals, radius, source=source, normals_estimated=estimated)

@@ -2,10 +2,14 @@
 
 Columns (CSV and ``.npy``): ``x y z`` then optionally ``radius`` and ``r g b``
 (3, 4 or 7 columns). A CSV may have a header naming the columns ``x, y, z``
-(required), ``radius`` and ``red, green, blue`` (colours only with a radius); colours above 1 are read as 0..255. PLY vertices give the
-centres, a ``radius`` (or ``scale``) vertex property the radii and vertex colours
-the colours. Without radii in the file every particle gets ``radius`` (default:
-0.5 % of the bounding-box diagonal).
+(required), ``radius`` and ``red, green, blue``; every other named column (a
+catalogue's ``mag``, a simulation's ``mass``) becomes a per-particle attribute to
+colour by. Colours above 1 are read as 0..255. PLY vertices give the centres, a
+``radius`` (or ``scale``) vertex property the radii, vertex colours the colours and
+other scalar vertex properties the attributes. Without radii in the file every
+particle gets ``radius``, by default
+:func:`~sparsecast.elements.default_particle_radius` (the median distance to the
+8th nearest neighbour).
 """
 
 from __future__ import annotations
@@ -26,7 +30,9 @@ from .reading import read_guard
 __all__ = ["load_particles", "PARTICLE_SUFFIXES"]
 
 PARTICLE_SUFFIXES = (".ply", ".csv", ".npy")
-_DEFAULT_RADIUS_FRACTION = 0.005
+_RGB = ("red", "green", "blue")
+#: columns / vertex properties with a meaning of their own (not attributes)
+_KNOWN_COLUMNS = {"x", "y", "z", "radius", "scale", "red", "green", "blue", "alpha", "nx", "ny", "nz"}
 
 
 def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> ParticleSet:
@@ -36,7 +42,9 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
     ----------
     path : path-like
     radius : float, optional
-        Radius of every particle when the file has none (and only then).
+        Radius of every particle when the file has none (and only then); default
+        from the data (:func:`~sparsecast.elements.default_particle_radius`; the
+        set's ``radius_estimated`` is then True).
 
     Raises
     ------
@@ -54,17 +62,22 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
     suffix = p.suffix.lower()
     if suffix not in PARTICLE_SUFFIXES:
         raise FileFormatError(f"{str(p)!r}: unknown particle file suffix {suffix!r}; expected one of {PARTICLE_SUFFIXES}")
+    attributes: dict[str, np.ndarray] = {}
     if suffix == ".ply":
-        centers, radii, colors = read_guard(p, "PLY particles", _read_ply, p)
+        centers, radii, colors, attributes = read_guard(p, "PLY particles", _read_ply, p)
     elif suffix == ".csv":
-        centers, radii, colors = _columns(read_guard(p, "CSV particles", _read_csv, p), p)
+        table, header = read_guard(p, "CSV particles", _read_csv, p)
+        if header is None:
+            centers, radii, colors = _columns(table, p)
+        else:
+            centers, radii, colors, attributes = _named_columns(table, header, p)
     else:
         centers, radii, colors = _columns(read_npy_array(p, "NumPy .npy particles"), p)
-    if radii is None:
-        if radius is None:
-            lo, hi = (centers.min(0), centers.max(0)) if len(centers) else (np.zeros(3), np.ones(3))
-            radius = max(_DEFAULT_RADIUS_FRACTION * float(np.linalg.norm(hi - lo)), 1e-6)
+    if radii is None and radius is not None:
         radii = np.full(centers.shape[0], float(radius))
+    if not np.all(np.isfinite(centers)):
+        bad = int(np.argmax(~np.isfinite(centers).all(axis=1)))
+        raise FileFormatError(f"{str(p)!r}: particle {bad} has a NaN or infinite centre; expected finite x, y, z")
     if colors is not None:
         if not np.all(np.isfinite(colors)):
             bad = int(np.argmax(~np.isfinite(colors).all(axis=1)))
@@ -73,7 +86,7 @@ def load_particles(path: str | os.PathLike, *, radius: float | None = None) -> P
         if colors.size and colors.max() > 1.0:
             colors = colors / 255.0
     try:
-        return ParticleSet(centers, radii, colors, name=p.name)
+        return ParticleSet(centers, radii, colors, name=p.name, attributes=attributes)
     except ValueError as exc:
         raise FileFormatError(f"{str(p)!r}: {exc}") from None
 
@@ -109,20 +122,21 @@ def _read_csv(p: Path) -> np.ndarray:
         a = np.loadtxt(p, delimiter=",", skiprows=1 if header else 0, ndmin=2)
     if a.size == 0:
         raise FileFormatError(f"{str(p)!r}: CSV holds no particle rows" + (" (only a header)" if header else ""))
-    if header is None:
-        return a
-    want = ["x", "y", "z"]
+    return a, header
+
+
+def _named_columns(a: np.ndarray, header: list[str], p: Path):
+    """Centres, radii, colours and attributes of a CSV table with a header row."""
     if len(header) != a.shape[1]:
         raise FileFormatError(f"{str(p)!r}: header names {len(header)} columns, rows hold {a.shape[1]}")
-    missing = [c for c in want if c not in header]
+    missing = [c for c in ("x", "y", "z") if c not in header]
     if missing:
         raise FileFormatError(f"{str(p)!r}: header {header} lacks column(s) {missing}")
-    cols = [header.index(c) for c in want]
-    if "radius" in header:
-        cols.append(header.index("radius"))
-        if all(c in header for c in ("red", "green", "blue")):
-            cols += [header.index(c) for c in ("red", "green", "blue")]
-    return a[:, cols]
+    col = {name: a[:, header.index(name)] for name in header}
+    radii = col.get("radius")
+    colors = np.stack([col[c] for c in _RGB], 1) if all(c in col for c in _RGB) else None
+    attributes = {name: v for name, v in col.items() if name not in _KNOWN_COLUMNS}
+    return np.stack([col["x"], col["y"], col["z"]], 1), radii, colors, attributes
 
 
 def _read_ply(p: Path):
@@ -139,10 +153,16 @@ def _read_ply(p: Path):
         if name in names:
             radii = np.asarray(vdata[name], dtype=np.float64).reshape(-1)
             break
+    attributes = {}
+    for name in names:
+        v = np.asarray(vdata[name])
+        # scalar numeric properties only (a list property is not a per-particle value)
+        if name not in _KNOWN_COLUMNS and v.dtype.kind in "biuf" and v.size == len(centers):
+            attributes[name] = v.astype(np.float64).reshape(-1)
     colors = None
     vc = getattr(geom, "colors", None)
     if vc is None and hasattr(geom, "visual") and getattr(geom.visual, "kind", None) == "vertex":
         vc = geom.visual.vertex_colors
     if vc is not None and len(vc) == len(centers):
         colors = np.asarray(vc, dtype=np.float64)[:, :3] / 255.0
-    return centers, radii, colors
+    return centers, radii, colors, attributes

@@ -9,12 +9,20 @@ samples, and skipping a sample whose opacity is zero changes nothing.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from numba import njit
 
 from .ray import lattice_range
 from .sample import gradient
 from .sampler import sample
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
+
+
+class Dvr(NamedTuple):
+    """Mode marker: direct volume rendering (the default; see :mod:`.iso` for the others)."""
+
+    tag: int = 0
 
 
 @njit(cache=True)

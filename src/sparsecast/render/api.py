@@ -8,11 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from .._util.checks import as_float, as_int
+from .._util.checks import as_float, as_int, one_of
 from ..camera import Camera
 from ..errors import ParameterError
 from ..image import Image
 from ..index import SpatialIndex, View, build_index
+from ..kernels.iso import MAX_ISOVALUES, Iso, IsoDvr
+from ..kernels.march import Dvr
 from ..kernels.sampler import sampler_for
 from ..transfer import TransferFunction
 from ..volume import Volume
@@ -36,6 +38,10 @@ MAX_SAMPLES_PER_IMAGE = 1 << 33
 
 #: clip planes a render takes at most
 MAX_CLIP_PLANES = 6
+#: what a render composites (``mode=``)
+RENDER_MODES = ("dvr", "iso", "iso+dvr")
+#: the BIH's build modes, which ``render(mode=...)`` passes on to ``index="bih"``
+BIH_MODES = ("ess", "single-sample", "multi-sample")
 
 
 def render(
@@ -48,7 +54,7 @@ def render(
     dt: float | None = None,
     index: str | SpatialIndex = "auto",
     ert: float = 0.99,
-    shading: bool | Mapping[str, float] = False,
+    shading: bool | Mapping[str, float] | None = None,
     background: str | Sequence[float] = "transparent",
     clip_box: Sequence[Sequence[float]] | None = None,
     clip_open: Sequence[Sequence[bool]] | None = None,
@@ -56,6 +62,9 @@ def render(
     initial: np.ndarray | None = None,
     rect: Sequence[int] | None = None,
     max_samples: int = MAX_SAMPLES_PER_IMAGE,
+    mode: str = "dvr",
+    iso: float | Sequence[float] | None = None,
+    iso_colors: Sequence[Sequence[float]] | None = None,
     **index_options: Any,
 ) -> Image:
     """Direct volume rendering of ``volume`` classified by ``tf`` as seen by ``camera``.
@@ -109,6 +118,21 @@ def render(
         Refuse a render that could take more lattice samples than this (pixels
         times samples across the volume's diagonal), before any work: a tiny
         ``dt`` is an error, not a render of many minutes. Default 2**33.
+    mode : {"dvr", "iso", "iso+dvr"}
+        ``"dvr"`` (default): direct volume rendering. ``"iso"``: the isosurfaces
+        ``iso`` (first crossing between lattice samples, refined by bisection,
+        shaded with the gradient; translucent surfaces show those behind them).
+        ``"iso+dvr"``: both, composited in depth order. The iso modes skip empty
+        space with bricks whose value range holds an isovalue (or, for iso+dvr, that
+        the TF leaves non-empty), so every exact index equals naive here too; an
+        isovalue outside the data range gives a background image. The BIH's
+        build modes (``"ess"``, ``"single-sample"``, ``"multi-sample"``) are still
+        passed on to ``index="bih"`` as before.
+    iso : float or sequence of float
+        Isovalues (1 to 8) for the iso modes, in data units.
+    iso_colors : sequence of (r, g, b[, a]), optional
+        Straight colour and opacity of each surface. Default: the TF's colour at
+        the isovalue, opaque.
     **index_options
         Passed to :func:`build_index` when ``index`` is a name (e.g. ``cell=16``
         for the grids).
@@ -140,6 +164,12 @@ def render(
     volume.require_renderable()  # a one-voxel-thick volume would render empty from every view
     if not isinstance(tf, TransferFunction):
         raise ParameterError(f"tf: expected a sparsecast.TransferFunction, got {type(tf).__name__}")
+    if mode in BIH_MODES:  # render(..., index="bih", mode="single-sample"): a build option of the BIH
+        index_options["mode"] = mode
+        mode = "dvr"
+    mode_marker = iso_mode(mode, iso, iso_colors, tf)
+    if shading is None:
+        shading = mode != "dvr"  # surfaces need their normals; DVR is unshaded unless asked
     if not isinstance(camera, Camera):
         raise ParameterError(f"camera: expected a sparsecast.Camera, got {type(camera).__name__}")
     width, height = check_size(width, height)
@@ -165,10 +195,12 @@ def render(
     clip_lo, clip_hi, open_lo, open_hi = _clip(volume, clip_box, clip_open)
     init = initial_rgba(initial, w, h)
 
+    # The iso modes skip bricks by a TF that is non-empty around the isovalues.
+    classify = tf if mode == "dvr" else tf.with_spikes(mode_marker.values, keep_opacity=mode == "iso+dvr")
     build_ms = 0.0
     build_jit_ms = 0.0
     if isinstance(index, str):
-        index = build_index(volume, tf, index, **index_options)
+        index = build_index(volume, classify, index, **index_options)
         build_ms = index.build_ms
         build_jit_ms = index.compile_ms
     elif isinstance(index, SpatialIndex):
@@ -177,6 +209,9 @@ def render(
                 f"index options {sorted(index_options)} apply only when index is a name; "
                 "this index is already built"
             )
+        if mode != "dvr":
+            raise ParameterError(f"index: mode={mode!r} builds its index for its isovalues; pass an index name "
+                                 f"(e.g. index={index.name!r}), not a built index")
         if index.volume is not volume or index.tf is not tf:
             raise ParameterError(
                 f"index: this {index.name!r} index was built for another volume or transfer function; "
@@ -185,6 +220,9 @@ def render(
     else:
         raise ParameterError(f"index: expected an index name or a SpatialIndex, got {type(index).__name__}")
 
+    if mode != "dvr" and not index.exact:
+        raise ParameterError(f"index: {index.name!r} is approximate; mode={mode!r} needs an exact index "
+                             "(e.g. index='auto')")
     if tf.sampling != "trilinear" and not index.exact:
         raise ParameterError(
             f"index: {index.name!r} is approximate and samples a resampled density; a "
@@ -202,7 +240,7 @@ def render(
         v_lo=float(tf.value_range[0]), scale=float(tf.scale),
         clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
         any_open=bool(open_lo.any() or open_hi.any()), planes=_planes(volume, clip_planes),
-        sampler=sampler_for(tf.sampling),
+        sampler=sampler_for(tf.sampling), mode=mode_marker,
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
     data = volume.data
@@ -228,10 +266,47 @@ def render(
         "dt": dt,
         "ert": ert,
         "shading": bool(frame.shading[0]),
+        "mode": mode,
     }
     if getattr(index, "auto", None) is not None:
         stats["auto"] = dict(index.auto)
     return Image(rgba, stats, samples)
+
+
+def iso_mode(mode: str, iso, iso_colors, tf: TransferFunction) -> Dvr | Iso | IsoDvr:
+    """The driver's mode marker for ``mode``, ``iso`` and ``iso_colors`` (checked)."""
+    one_of(mode, "mode", RENDER_MODES)
+    if mode == "dvr":
+        if iso is not None or iso_colors is not None:
+            raise ParameterError("iso: isovalues apply only with mode='iso' or mode='iso+dvr'; got mode='dvr'")
+        return Dvr()
+    if iso is None:
+        raise ParameterError(f"iso: mode={mode!r} needs isovalues, e.g. iso=0.5 or iso=[0.3, 0.7]")
+    try:
+        values = np.atleast_1d(np.asarray(iso, np.float64)).ravel()
+    except (TypeError, ValueError):
+        raise ParameterError(f"iso: expected a number or a list of numbers, got {iso!r}") from None
+    if not 1 <= values.size <= MAX_ISOVALUES or not np.all(np.isfinite(values)):
+        raise ParameterError(f"iso: expected 1 to {MAX_ISOVALUES} finite isovalues, got {iso!r}")
+    if tf.sampling != "trilinear":
+        raise ParameterError(f"mode: {mode!r} needs a field sampled trilinearly; a {type(tf).__name__} "
+                             "samples label ids (render labels with mode='dvr')")
+    if iso_colors is None:
+        colors = np.ones((values.size, 4))
+        colors[:, :3] = tf(values)[:, :3]
+    else:
+        try:
+            rows = [list(map(float, c)) for c in iso_colors]
+        except (TypeError, ValueError):
+            raise ParameterError(f"iso_colors: expected one (r, g, b[, a]) per isovalue, got {iso_colors!r}") from None
+        if len(rows) != values.size or any(len(r) not in (3, 4) for r in rows):
+            raise ParameterError(f"iso_colors: expected {values.size} colour(s) (r, g, b[, a]) for "
+                                 f"{values.size} isovalue(s), got {iso_colors!r}")
+        colors = np.array([r + [1.0] if len(r) == 3 else r for r in rows], np.float64)
+        if not (np.all(np.isfinite(colors)) and colors.min() >= 0.0 and colors.max() <= 1.0):
+            raise ParameterError(f"iso_colors: expected numbers in [0, 1], got {iso_colors!r}")
+    cls = Iso if mode == "iso" else IsoDvr
+    return cls(np.ascontiguousarray(values), np.ascontiguousarray(colors))
 
 
 def _view(cam: np.ndarray, origin: np.ndarray, inv_spacing: np.ndarray) -> View:

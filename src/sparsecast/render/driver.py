@@ -78,6 +78,7 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     inv_spacing = frame.inv_spacing
     table = frame.table
     sampler = frame.sampler
+    mode = frame.mode
     shading = frame.shading
     background = frame.background
     v_lo = frame.v_lo
@@ -154,8 +155,8 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                         go = s0 <= s1
                     if go:
                         r, g, b, a, k_next, ns, nne = integrate(
-                            record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
-                            ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_hi, (r, g, b, a),
+                            record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing,
+                            dt, ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_lo, k_hi, (r, g, b, a),
                         )
                         n_samples += ns
                         n_nonempty += nne

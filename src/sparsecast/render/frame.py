@@ -6,6 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..kernels.iso import Iso, IsoDvr
+from ..kernels.march import Dvr
 from ..kernels.sampler import Nearest, Trilinear
 
 __all__ = ["Frame"]
@@ -49,6 +51,9 @@ class Frame(NamedTuple):
     sampler : Trilinear or Nearest
         How samples read the voxels (:mod:`sparsecast.kernels.sampler`); its type
         selects the compiled marching loop.
+    mode : Dvr, Iso or IsoDvr
+        What a ray composites (:mod:`sparsecast.kernels.march`, :mod:`sparsecast.kernels.iso`):
+        DVR samples, isosurfaces, or both in depth order; its type selects the loop too.
     """
 
     cam: np.ndarray
@@ -72,3 +77,4 @@ class Frame(NamedTuple):
     any_open: bool
     planes: np.ndarray
     sampler: Trilinear | Nearest
+    mode: Dvr | Iso | IsoDvr

@@ -5,10 +5,12 @@ is the general one, so both run the same kernel and their speeds compare like
 for like. Node layout (see :mod:`._bvh_build_kernels`): ``node_count > 0`` is a
 triangle leaf of ``node_count`` triangles from ``node_child``; ``node_count == 0``
 an inner node with children ``node_child`` and ``node_child + 1``;
-``node_count == TILE_LEAF`` a tile leaf whose tile is ``node_child``.
-Leaf triangle ``k`` is ``tris[k]``, mesh face ``tri_face[k]``, with shading
-normals ``vnormals[faces[k]]`` (``faces`` is in leaf order, so an index stores
-normals for its own triangles only).
+``node_count == TILE_LEAF`` a tile leaf whose tile is ``node_child``;
+``node_count <= -2`` a disc leaf of ``-1 - node_count`` discs from ``node_child``
+(:func:`disc_leaf_code`). Leaf triangle ``k`` is ``tris[k]``, mesh face
+``tri_face[k]``, with shading normals ``vnormals[faces[k]]`` (``faces`` is in leaf
+order, so an index stores normals for its own triangles only). Leaf disc ``k`` is
+``discs[k] = (cx, cy, cz, nx, ny, nz, r)``, point ``disc_point[k]`` of the cloud.
 """
 
 from __future__ import annotations
@@ -26,6 +28,11 @@ from ._rbvh_kernels import tile_hit, tile_normal
 TILE_LEAF = -1
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
+
+
+def disc_leaf_code(count):
+    """``node_count`` of a leaf of ``count >= 1`` discs (-2, -3, ...; decoded as ``-1 - code``)."""
+    return -1 - count
 
 
 @njit(cache=True, inline="always")
@@ -80,6 +87,25 @@ def intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
 
 
 @njit(cache=True, inline="always")
+def intersect_disc(discs, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
+    """Two-sided ray-disc test: the ray meets the disc's plane at ``t`` within radius ``r``
+    of its centre; ``inf`` on a miss (a ray in the plane misses: the disc has no thickness)."""
+    nx, ny, nz = discs[k, 3], discs[k, 4], discs[k, 5]
+    den = dx * nx + dy * ny + dz * nz
+    if den == 0.0:
+        return math.inf
+    cx, cy, cz = discs[k, 0], discs[k, 1], discs[k, 2]
+    t = ((cx - ox) * nx + (cy - oy) * ny + (cz - oz) * nz) / den
+    if t < t_min or t > t_max:
+        return math.inf
+    px, py, pz = ox + t * dx - cx, oy + t * dy - cy, oz + t * dz - cz
+    r = discs[k, 6]
+    if px * px + py * py + pz * pz > r * r:
+        return math.inf
+    return t
+
+
+@njit(cache=True, inline="always")
 def _mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
     """Tile of leaf ``k`` at the mip level whose texel is at least the ray footprint."""
     fp = fp0 + spread * max(t_entry, 0.0)
@@ -94,7 +120,7 @@ def _mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
 
 @njit(cache=True)
 def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
                 ox, oy, oz, dx, dy, dz, t_min, t_max, stack, fp0, spread, n_levels):
     """Nearest hit along the ray in ``[t_min, t_max]``.
 
@@ -102,14 +128,15 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
     match the ray's footprint ``fp0 + spread * t`` where the ray enters the leaf.
 
     Returns ``(t, nx, ny, nz, face, tile, a, b)``: ``t = inf`` on a miss; the unit
-    shading normal; the mesh face (triangle hits, else -1) or tile (tile hits,
-    else -1); barycentrics ``(a, b)`` of a triangle hit or texel coordinates of a
-    tile hit.
+    shading normal; the mesh face (triangle hits) or the cloud's point (disc hits),
+    else -1, or tile (tile hits, else -1); barycentrics ``(a, b)`` of a triangle hit
+    or texel coordinates of a tile hit (0 for a disc).
     """
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     best = t_max
     face = -1
     best_k = -1
+    best_disc = -1
     tile = -1
     ha = hb = 0.0
     if ray_box(nb, 0, ox, oy, oz, ix, iy, iz, t_min, best) == math.inf:
@@ -139,7 +166,13 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
             for k in range(first, first + c):
                 t, u, v = intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, best)
                 if t < best:
-                    best, face, best_k, tile, ha, hb = t, tri_face[k], k, -1, u, v
+                    best, face, best_k, best_disc, tile, ha, hb = t, tri_face[k], k, -1, -1, u, v
+        elif c < TILE_LEAF:
+            first = nchild[node]
+            for k in range(first, first - 1 - c):
+                t = intersect_disc(discs, k, ox, oy, oz, dx, dy, dz, t_min, best)
+                if t < best:
+                    best, face, best_k, best_disc, tile, ha, hb = t, disc_point[k], -1, k, -1, 0.0, 0.0
         else:
             k = nchild[node]
             if n_levels > 1:
@@ -147,7 +180,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                               n_levels, tile_proj, tile_rect.shape[0] // n_levels)
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
             if t < best:
-                best, face, tile, ha, hb = t, -1, k, s, u
+                best, face, best_k, best_disc, tile, ha, hb = t, -1, -1, -1, k, s, u
         # Pop the next node that the ray still reaches before the best hit.
         found = False
         while sp > 0:
@@ -160,7 +193,9 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
             break
     if face < 0 and tile < 0:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
-    if face >= 0:
+    if best_disc >= 0:
+        nx, ny, nz = discs[best_disc, 3], discs[best_disc, 4], discs[best_disc, 5]
+    elif face >= 0:
         w = 1.0 - ha - hb
         f0, f1, f2 = faces[best_k, 0], faces[best_k, 1], faces[best_k, 2]
         nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
@@ -176,7 +211,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
 
 @njit(cache=True, parallel=True)
 def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-              tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+              tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
               origins, dirs, t_min, t_max, stack_size, fp0, spread, n_levels,
               out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of a batch of rays (unit directions), in parallel chunks.
@@ -190,7 +225,7 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit(
                 nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
                 origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
                 t_min, t_max, stack, fp0, spread, n_levels)
             out_t[r] = t
@@ -201,7 +236,7 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
 
 @njit(cache=True, parallel=True)
 def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
                  params, width, height, stack_size, n_levels,
                  out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles.
@@ -222,7 +257,7 @@ def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit(
                     nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal,
+                    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
                     ox, oy, oz, dx, dy, dz, 0.0, np.inf, stack, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz

@@ -1,4 +1,12 @@
-"""The exact reference: a binned-SAH triangle BVH (Aila & Laine's baseline in the RBVH paper)."""
+"""The exact reference: a binned-SAH BVH over triangles (Aila & Laine's baseline in the
+RBVH paper) or over the oriented discs of a point cloud.
+
+Both go through the one binned-SAH builder over primitive boxes
+(:mod:`._bvh_build_kernels`); only the boxes and the leaf primitives differ. A disc
+of centre ``c``, unit normal ``n`` and radius ``r`` spans ``c +- r sqrt(1 - n_a^2)``
+along axis ``a`` (its tight box: a disc facing the axis is flat along it), so the
+tree culls a flat scan as well as a triangle mesh of it.
+"""
 
 from __future__ import annotations
 
@@ -8,10 +16,11 @@ import numpy as np
 
 from ..errors import ParameterError
 from ._bvh_build_kernels import build_binned_sah
+from ._bvh_kernels import disc_leaf_code
 from .index import SurfaceIndex, empty_atlas_arrays
-from .mesh import TriangleMesh
+from .mesh import PointCloud, TriangleMesh
 
-__all__ = ["build_bvh", "triangle_bvh_arrays"]
+__all__ = ["build_bvh", "triangle_bvh_arrays", "disc_boxes"]
 
 
 def triangle_bvh_arrays(tris: np.ndarray, max_leaf: int = 4, bins: int = 16):
@@ -26,23 +35,35 @@ def triangle_bvh_arrays(tris: np.ndarray, max_leaf: int = 4, bins: int = 16):
     return build_binned_sah(bmin, bmax, cent, max_leaf, bins)
 
 
-def build_bvh(mesh: TriangleMesh, *, max_leaf: int = 4, bins: int = 16) -> SurfaceIndex:
-    """Exact triangle BVH of ``mesh`` (binned SAH, leaves of at most ``max_leaf`` triangles).
+def disc_boxes(centers: np.ndarray, normals: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tight boxes ``(lo, hi)``, each (k, 3), of discs with unit ``normals`` (k, 3) and ``radii`` (k,)."""
+    half = radii[:, None] * np.sqrt(np.clip(1.0 - normals * normals, 0.0, 1.0))
+    return centers - half, centers + half
+
+
+def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: int = 16) -> SurfaceIndex:
+    """Exact BVH of a triangle mesh, or of a point cloud's discs (binned SAH).
 
     Parameters
     ----------
-    mesh : TriangleMesh
+    surface : TriangleMesh or PointCloud
+        A point cloud is ray cast as discs of its radii, oriented by its normals
+        (required: :func:`sparsecast.surface.normals.estimate_normals` makes them).
     max_leaf : int
-        1..32 triangles per leaf.
+        1..32 primitives per leaf.
     bins : int
         SAH bins per node, 2..256.
     """
-    if not isinstance(mesh, TriangleMesh):
-        raise ParameterError(f"mesh: expected a TriangleMesh (see sparsecast.io.load_mesh), got {type(mesh).__name__}")
+    if not isinstance(surface, (TriangleMesh, PointCloud)):
+        raise ParameterError(f"mesh: expected a TriangleMesh or PointCloud (see sparsecast.io.meshes.load_mesh, "
+                             f"load_points), got {type(surface).__name__}")
     if not 1 <= max_leaf <= 32:
-        raise ParameterError(f"max_leaf: expected 1..32 triangles, got {max_leaf}")
+        raise ParameterError(f"max_leaf: expected 1..32 primitives, got {max_leaf}")
     if not 2 <= bins <= 256:
         raise ParameterError(f"bins: expected 2..256, got {bins}")
+    if isinstance(surface, PointCloud):
+        return _build_disc_bvh(surface, max_leaf, bins)
+    mesh = surface
     t0 = time.perf_counter()
     tris = mesh.triangles.astype(np.float32)
     t1 = time.perf_counter()
@@ -58,3 +79,32 @@ def build_bvh(mesh: TriangleMesh, *, max_leaf: int = 4, bins: int = 16) -> Surfa
                "max_leaf": max_leaf, "bins": bins},
     )
     return index
+
+
+def _build_disc_bvh(cloud: PointCloud, max_leaf: int, bins: int) -> SurfaceIndex:
+    if cloud.normals is None:
+        raise ParameterError(f"surface {cloud.source!r}: a point cloud needs normals to orient its discs "
+                             "(sparsecast.surface.normals.estimate_normals)")
+    t0 = time.perf_counter()
+    radii = np.asarray(cloud.radii, np.float64)
+    lo, hi = disc_boxes(cloud.points, cloud.normals, radii)
+    # float32 boxes, as the traversal stores them: rounded outwards so that no disc
+    # pokes out of its box (a ray could then miss a leaf that holds its hit)
+    lo32 = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+    hi32 = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+    t1 = time.perf_counter()
+    nb, nchild, ncount, order, depth = build_binned_sah(lo32, hi32, 0.5 * (lo32 + hi32), max_leaf, bins)
+    t2 = time.perf_counter()
+    leaf = ncount > 0
+    ncount[leaf] = disc_leaf_code(ncount[leaf])
+    discs = np.concatenate([cloud.points, cloud.normals, radii[:, None]], axis=1)[order].astype(np.float32)
+    return SurfaceIndex(
+        kind="bvh", source=cloud, node_bounds=nb, node_child=nchild, node_count=ncount,
+        tris=np.zeros((0, 3, 3), np.float32), tri_face=np.zeros(0, np.int32),
+        faces=np.zeros((0, 3), np.int32), vnormals=np.zeros((0, 3), np.float32),
+        depth=int(depth), **empty_atlas_arrays(),
+        discs=np.ascontiguousarray(discs), disc_point=order.astype(np.int32),
+        build={"build_ms": (time.perf_counter() - t0) * 1e3,
+               "phase_prepare_ms": (t1 - t0) * 1e3, "phase_sah_ms": (t2 - t1) * 1e3,
+               "max_leaf": max_leaf, "bins": bins},
+    )

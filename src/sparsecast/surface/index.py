@@ -1,6 +1,6 @@
 """The flattened surface index both builders produce, and :func:`raycast` (:class:`RayCast`) over it.
 
-A :class:`SurfaceIndex` is a BVH whose leaves are triangles (exact) or
+A :class:`SurfaceIndex` is a BVH whose leaves are triangles or discs (exact) or
 height-field tiles in an atlas (approximate); the exact BVH has no tiles, the
 hybrid RBVH has both. One traversal kernel serves every kind
 (:func:`._bvh_kernels.closest_hit`).
@@ -49,6 +49,10 @@ class SurfaceIndex:
     tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal
         Tile projections, height ranges, atlas rectangles, the depth layer and the
         int8 normal layer (see :mod:`._rbvh_kernels`).
+    discs : (d, 7) float32
+        Discs of the disc leaves in leaf order (an exact BVH over a point cloud):
+        centre, unit normal, radius; ``disc_point`` (d,) int32 maps them to the
+        cloud's points.
     depth : int
         Tree depth (the traversal stack size).
     mip_levels : int
@@ -75,6 +79,8 @@ class SurfaceIndex:
     build: dict = field(default_factory=dict)
     mip_levels: int = 1
     layers: dict = field(default_factory=dict)  # extra atlas layers (surface storage)
+    discs: np.ndarray = field(default_factory=lambda: np.zeros((0, 7), np.float32))
+    disc_point: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
 
     @property
     def center(self) -> np.ndarray:
@@ -93,7 +99,7 @@ class SurfaceIndex:
         """The arrays every traversal kernel takes, in order."""
         return (self.node_bounds, self.node_child, self.node_count, self.tris, self.tri_face,
                 self.faces, self.vnormals, self.tile_proj, self.tile_h, self.tile_rect,
-                self.atlas_depth, self.atlas_normal)
+                self.atlas_depth, self.atlas_normal, self.discs, self.disc_point)
 
     def nbytes(self) -> dict[str, int]:
         """Bytes of the tree, the triangles it stores, the atlas and the shading data."""
@@ -101,6 +107,7 @@ class SurfaceIndex:
         return {
             "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes),
             "triangles": int(self.tris.nbytes + self.tri_face.nbytes),
+            "discs": int(self.discs.nbytes + self.disc_point.nbytes),
             "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tile_proj.nbytes
                          + self.tile_h.nbytes + self.tile_rect.nbytes) if tiles else 0,
             # Smooth shading of triangle hits: corner indices and vertex normals.
@@ -117,6 +124,8 @@ class SurfaceIndex:
             "triangle_leaves": int((c > 0).sum()),
             "tile_leaves": int((c == TILE_LEAF).sum()),
             "triangles": int(len(self.tris)),
+            "disc_leaves": int((c < TILE_LEAF).sum()),
+            "discs": int(len(self.discs)),
             "tiles": self.n_tiles,
             "mip_levels": self.mip_levels,
             "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
@@ -131,14 +140,14 @@ class SurfaceIndex:
     def __repr__(self) -> str:
         s = self.stats()
         return (f"<SurfaceIndex {self.kind}: {s['nodes']} nodes, {s['triangles']} triangles, "
-                f"{s['tiles']} tiles, {s['bytes'] / 2**20:.1f} MiB>")
+                f"{s['discs']} discs, {s['tiles']} tiles, {s['bytes'] / 2**20:.1f} MiB>")
 
 
 @dataclass(frozen=True)
 class Hits:
     """Closest hits of a batch of rays (``t = inf`` where a ray misses).
 
-    ``face`` is the mesh face of a triangle hit (else -1), ``tile`` the atlas tile
+    ``face`` is the mesh face of a triangle hit or the point of a disc hit (else -1), ``tile`` the atlas tile
     of a height-field hit (else -1); ``uv`` holds barycentrics for triangle hits
     and texel coordinates for tile hits.
     """

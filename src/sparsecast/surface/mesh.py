@@ -11,12 +11,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..axes import up_rotation
+from ..axes import UP_AXES, up_rotation
 from ..errors import SparsecastError
+from ..neighbours import typical_spacing
 
 __all__ = ["MeshDataError", "DegenerateFacesError", "MeshWarning", "DegenerateFacesWarning", "DEGENERATE_FRACTION",
-           "TriangleMesh", "PointCloud", "icosphere", "subdivide", "grid_plane", "box_mesh", "orient", "z_up", "tiny_points",
-           "warmup_mesh"]
+           "TriangleMesh", "PointCloud", "icosphere", "subdivide", "grid_plane", "box_mesh", "orient", "z_up",
+           "UP_AXES", "orient_points", "default_disc_radius", "tiny_points", "warmup_mesh"]
 
 #: A mesh may keep up to this fraction of its faces degenerate (zero area): 0.1 %. Scanned
 #: and converted meshes often carry a handful (the Stanford dragon: 111 of 871,414); they
@@ -226,6 +227,28 @@ def _face_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
 
 
+#: neighbour whose median distance is the default disc radius (see default_disc_radius)
+DISC_RADIUS_NEIGHBOUR = 4
+
+
+def default_disc_radius(points: np.ndarray) -> float:
+    """Disc radius that closes a sampled surface: the median distance to the 4th neighbour.
+
+    On a surface sampled with spacing ``s`` the 4th neighbour lies about ``s`` away,
+    and discs of radius ``s`` overlap their neighbours (``s / sqrt(2)`` already covers
+    a square grid), so the splats leave no holes without blurring detail. A median
+    follows the bulk of the scan, not its outliers; the box of a scan says little
+    about its sampling (twice the radius on the bunny scan bun000). Fewer than 5
+    points: the spacing of ``n`` points spread over the box's faces.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    r = typical_spacing(p, DISC_RADIUS_NEIGHBOUR) if len(p) > DISC_RADIUS_NEIGHBOUR else 0.0
+    if r <= 0.0:
+        ext = np.ptp(p, axis=0)
+        r = float(np.sqrt(2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[0] * ext[2]) / len(p)))
+    return max(r, 1e-9)
+
+
 @dataclass(frozen=True, eq=False)
 class PointCloud:
     """Oriented points, rendered as discs (splats) of radius ``radii``.
@@ -234,17 +257,23 @@ class PointCloud:
     ----------
     points : (n, 3) array_like
     normals : (n, 3) array_like, optional
-        Unit normals; without them the RBVH cannot orient its tiles, so they are
-        required by :func:`sparsecast.surface.build_rbvh`.
+        Unit normals; the discs are oriented by them, so both
+        :func:`sparsecast.surface.build_rbvh` and :func:`sparsecast.surface.build_bvh`
+        require them (:func:`sparsecast.surface.normals.estimate_normals` makes them
+        for a cloud without; :func:`sparsecast.io.meshes.load_points` does so itself).
     radii : float or (n,) array_like, optional
-        Disc radii; default: the mean nearest-neighbour spacing estimated from the
-        bounding box and the count.
+        Disc radii; default :func:`default_disc_radius` (from the point spacing).
+    source : str
+        Name used in messages.
+    normals_estimated : bool
+        True when ``normals`` were estimated from the points, not read.
     """
 
     points: np.ndarray
     normals: np.ndarray | None = None
     radii: np.ndarray | float | None = None
     source: str = "points"
+    normals_estimated: bool = False
 
     def __post_init__(self) -> None:
         p = _check_points(self.points, "points", self.source)
@@ -258,10 +287,7 @@ class PointCloud:
                 raise MeshDataError(f"{self.source}: {int((ln == 0).sum())} normals are zero; expected unit normals")
             object.__setattr__(self, "normals", n / ln)
         if self.radii is None:
-            ext = np.ptp(p, axis=0)
-            # Points on a surface: spacing ~ sqrt(surface area / n), surface ~ box faces.
-            spacing = np.sqrt(2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[0] * ext[2]) / len(p))
-            r = np.full(len(p), max(spacing, 1e-9))
+            r = np.full(len(p), default_disc_radius(p))
         else:
             r = np.broadcast_to(np.asarray(self.radii, dtype=np.float64), (len(p),)).copy()
             if not (np.isfinite(r).all() and (r > 0).all()):
@@ -392,3 +418,22 @@ def orient(mesh: TriangleMesh, up: str) -> TriangleMesh:
 def z_up(mesh: TriangleMesh) -> TriangleMesh:
     """Rotate a y-up mesh (most scanned meshes: bunny, beast) so +z is up: ``orient(mesh, "y")``."""
     return orient(mesh, "y")
+
+
+def orient_points(cloud: PointCloud, up: str) -> PointCloud:
+    """Rotate ``cloud`` (points and normals) so that its ``up`` axis becomes +z, as
+    :meth:`sparsecast.Camera.orbit` expects (``"y"`` for most scans; ``"z"``: unchanged).
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    up : {"x", "y", "z", "-x", "-y", "-z"}
+
+    Returns
+    -------
+    PointCloud
+        The same radii, source and ``normals_estimated``.
+    """
+    r = up_rotation(up)  # the rotation of orient(): a y-up mesh and cloud of one scan line up
+    normals = None if cloud.normals is None else cloud.normals @ r.T
+    return PointCloud(cloud.points @ r.T, normals, cloud.radii, cloud.source, cloud.normals_estimated)

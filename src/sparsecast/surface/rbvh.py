@@ -154,7 +154,8 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
     Parameters
     ----------
     surface : TriangleMesh or PointCloud
-        Point clouds need normals; they are splatted as discs.
+        Point clouds need normals (``load_points`` estimates them for files
+        without); they are splatted as discs.
     quality : {"Q0", "Q1", "Q2", "Q3", "Q4"} or Quality
         Q0 finest (rho 2M, alpha 0.85, phi 45 deg) to Q4 coarsest (32k, 0.65, 65).
     split : {"sah", "median"}
@@ -213,7 +214,8 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         if not isinstance(surface, PointCloud):
             raise ParameterError(f"surface: expected a TriangleMesh or PointCloud, got {type(surface).__name__}")
         if surface.normals is None:
-            raise ParameterError(f"surface {surface.source!r}: a point cloud needs normals to be rasterized into tiles")
+            raise ParameterError(f"surface {surface.source!r}: a point cloud needs normals to be rasterized into tiles "
+                                 "(sparsecast.surface.normals.estimate_normals)")
     hybrid = hybrid and is_mesh
     phases: dict[str, float] = {}
     t_all = time.perf_counter()

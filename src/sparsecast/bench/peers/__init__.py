@@ -23,6 +23,7 @@ __all__ = ["PEERS", "load_peer", "PeerUnavailable"]
 PEERS: dict[str, str] = {
     "vtk": "sparsecast.bench.peers.vtk_peer",
     "yt": "sparsecast.bench.peers.yt_peer",
+    "pyvista": "sparsecast.bench.peers.pyvista_peer",
 }
 
 

@@ -62,13 +62,13 @@ def _composite(table, v, v_lo, scale, seg_steps, gx, gy, gz, wdx, wdy, wdz, inv_
 
 
 @overload(integrate, jit_options={"cache": True, "error_model": "numpy"})
-def _integrate(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
-               ray, wdir, t0, t1, k_next, k_max, acc):
+def _integrate(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+               shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
     if record_class(record) is not BihApproxRecord:
         return None
 
-    def impl(record, scratch, state, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert, shading,
-             ray, wdir, t0, t1, k_next, k_max, acc):
+    def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
+             shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
         ox, oy, oz, dx, dy, dz = ray
         wdx, wdy, wdz = wdir
         r, g, b, a = acc

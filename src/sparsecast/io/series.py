@@ -1,0 +1,99 @@
+"""Reading time series: a folder or glob of volume files, a list of paths, a 4-D array or ``.npy``."""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import FileFormatError, ParameterError
+from ..series import DEFAULT_CACHE_BYTES, VolumeSeries
+from .files import require_regular_file
+from .formats import READ_SUFFIXES
+from .names import suffix_of
+from .volumes import load_volume
+
+__all__ = ["load_series"]
+
+
+def _natural_key(p: Path):
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", p.name)]
+
+
+def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=None, origin=None,
+                **load_options: Any) -> VolumeSeries:
+    """A :class:`~sparsecast.series.VolumeSeries` from files or an array.
+
+    Parameters
+    ----------
+    source : path, str, sequence of paths, or array
+        A directory (every volume file in it, in natural name order: ``t2`` before
+        ``t10``), a glob pattern (``"run/step_*.nrrd"``), a list of files (in the
+        given order), a ``(t, nz, ny, nx)`` array, or a 4-D ``.npy`` file (memory-mapped:
+        a step is read when it is asked for).
+    cache_bytes : int
+        Voxel bytes of recent steps kept in memory.
+    spacing, origin, **load_options
+        Passed to :func:`~sparsecast.io.load_volume` for every file (spacing and
+        origin also for arrays).
+
+    Raises
+    ------
+    FileFormatError
+        A folder or pattern without volume files, or a ``.npy`` that is not 4-D.
+    """
+    if isinstance(source, np.ndarray) or (hasattr(source, "shape") and hasattr(source, "__getitem__")
+                                          and not isinstance(source, (str, os.PathLike))):
+        return VolumeSeries.from_array(source, 1.0 if spacing is None else spacing,
+                                       0.0 if origin is None else origin, cache_bytes=cache_bytes)
+    if isinstance(source, (list, tuple)):
+        files = [Path(p) for p in source]
+        label = f"{len(files)} files"
+    else:
+        text = os.fspath(source)
+        path = Path(text)
+        if path.suffix.lower() == ".npy" and path.is_file():
+            return _npy_series(path, spacing, origin, cache_bytes)
+        if path.is_dir():
+            files = sorted((f for f in path.iterdir() if f.is_file() and suffix_of(f) in READ_SUFFIXES),
+                           key=_natural_key)
+            label = text
+            if not files:
+                raise FileFormatError(f"{text!r}: directory holds no volume files ({', '.join(READ_SUFFIXES)}); "
+                                      "expected one file per time step")
+        elif glob.has_magic(text):
+            files = sorted((Path(f) for f in glob.glob(text)), key=_natural_key)
+            label = text
+            if not files:
+                raise FileFormatError(f"{text!r}: the pattern matches no files; expected one file per time step")
+        else:
+            raise FileFormatError(f"{text!r}: expected a directory, a glob pattern, a list of files or a 4-D "
+                                  ".npy for a time series")
+    kw = dict(load_options)
+    if spacing is not None:
+        kw["spacing"] = spacing
+    if origin is not None:
+        kw["origin"] = origin
+    loaders = [lambda f=f: load_volume(f, **kw) for f in files]
+    return VolumeSeries(loaders, [f.name for f in files], cache_bytes=cache_bytes, name=label)
+
+
+def _npy_series(path: Path, spacing, origin, cache_bytes: int) -> VolumeSeries:
+    require_regular_file(path, ".npy file")
+    try:
+        arr = np.load(path, mmap_mode="r", allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        raise FileFormatError(f"{str(path)!r}: not a readable .npy file ({exc})") from None
+    if arr.ndim != 4:
+        raise FileFormatError(f"{str(path)!r}: {arr.ndim}-D array of shape {arr.shape}; expected a 4-D "
+                              "(t, nz, ny, nx) array for a time series")
+    if spacing is None:
+        spacing = 1.0
+    if origin is None:
+        origin = 0.0
+    series = VolumeSeries.from_array(arr, spacing, origin, name=path.name, cache_bytes=cache_bytes)
+    return series

@@ -1,0 +1,34 @@
+"""The ``features`` bench section on tiny cases: records, interleaved runs, exactness (no timing asserted)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sparsecast.bench import features
+
+
+def test_features_section_records_every_case_and_variant():
+    recs = []
+    features.run(["demo-128"], width=12, height=10, repeat=3, warmup=1, record=lambda **kw: recs.append(kw),
+                 label_size=32)
+    renders = [r for r in recs if r.get("phase") == "render"]
+    cases = {(r["case"], r["variant"]) for r in renders}
+    assert cases == {("labels", "all"), ("labels", "half"), ("clip", "unclipped"), ("clip", "half-box"),
+                     ("iso", "naive")} | {("iso", i) for i in features.ISO_INDICES}
+    for r in renders:
+        assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"]
+        assert r["max_abs_diff"] <= 1e-5, r  # every variant is exact against naive
+        assert r["speedup"] > 0
+    by = {(r["case"], r["variant"]): r for r in renders}
+    # Hiding the big labels and clipping away half take fewer samples (the point of the case).
+    assert by["labels", "half"]["samples"] < by["labels", "all"]["samples"]
+    assert by["clip", "half-box"]["samples"] < by["clip", "unclipped"]["samples"]
+    assert all(by["iso", i]["samples"] < by["iso", "naive"]["samples"] for i in features.ISO_INDICES)
+    assert {r["variant"] for r in recs if r.get("phase") == "rebuild"} == {"all", "half"}
+
+
+def test_label_scene_is_a_segmentation():
+    vol, colours = features.label_scene(24, labels=5)
+    ids = vol.label_ids()
+    assert set(ids.tolist()) <= {0, 1, 2, 3, 4, 5} and 0 in ids and len(colours) == 5
+    assert np.count_nonzero(vol.data == 1) >= np.count_nonzero(vol.data == 5)  # 1 is the largest
