@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -12,14 +13,33 @@ from hypothesis import settings
 settings.register_profile("ci", max_examples=25, deadline=None)
 settings.load_profile("ci")
 
-#: ``../shared/data`` relative to the project root; absent in a fresh clone.
-SHARED_DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+#: the environment variable naming the folder of real data (as for the benchmarks)
+DATA_VARIABLE = "SPARSECAST_DATA"
+
+#: ``$SPARSECAST_DATA``, else ``../shared/data`` beside the project root; absent in a fresh clone.
+SHARED_DATA_DIR = (Path(os.environ[DATA_VARIABLE]) if os.environ.get(DATA_VARIABLE)
+                   else Path(__file__).resolve().parents[1].parent / "shared" / "data")
 
 
 @pytest.fixture(scope="session")
 def shared_data_dir() -> Path:
-    """Directory of real public data (may not exist: tests using it must skip then)."""
+    """Directory of real public data (may not exist: use :func:`shared_file`, which skips then)."""
     return SHARED_DATA_DIR
+
+
+@pytest.fixture(scope="session")
+def shared_file():
+    """``shared_file(NAME)``: the path of a real-data file, or a skip that says where it was
+    looked for and how to point the tests at it."""
+
+    def find(name: str) -> Path:
+        path = SHARED_DATA_DIR / name
+        if not path.is_file():
+            pytest.skip(f"real data {name} not found in {SHARED_DATA_DIR}: set {DATA_VARIABLE} to the folder "
+                        f"holding it (README, 'Tests and real data')")
+        return path
+
+    return find
 
 
 @pytest.fixture

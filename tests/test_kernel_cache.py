@@ -80,3 +80,24 @@ def test_index_naming_an_unimportable_type_is_a_cache_miss(tmp_path, monkeypatch
     (mod_dir / "ghost_record_mod.py").unlink()
     importlib.invalidate_caches()
     assert cache._load_index() == {}
+
+
+def test_compile_clock_counts_compilation_only():
+    from numba import njit
+
+    @njit  # a fresh function: its first call compiles, later calls do not
+    def twice(x):
+        return 2 * x
+
+    before = kernel_cache.compile_seconds()
+    assert twice(3) == 6
+    compiled = kernel_cache.compile_seconds()
+    assert compiled > before
+    assert twice(4) == 8
+    assert kernel_cache.compile_seconds() == compiled
+
+
+def test_compile_note():
+    assert kernel_cache.compile_note(1.2345) == "compile 1234 ms"
+    assert kernel_cache.compile_note(0.0) == ""
+    assert kernel_cache.compile_note(kernel_cache.NOTE_MS / 2e3) == ""

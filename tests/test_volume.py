@@ -68,6 +68,26 @@ def test_brick_larger_than_the_volume_is_one_brick():
     assert bs.vmin[0, 0, 0] == data.min() and bs.vmax[0, 0, 0] == data.max()
 
 
+def test_brick_kernel_warm_up_compiles_what_the_real_pass_runs(monkeypatch):
+    """The first brick_stats compiles on a tiny array first (kept out of build_ms): that array
+    must have the Numba type of a Volume's voxels, read-only flag included, or the real
+    pass compiles again inside the timing."""
+    import numba
+
+    from sparsecast import volume as volume_module
+    from sparsecast.kernels.bricks import brick_minmax
+
+    vol = Volume(np.arange(5 * 6 * 7, dtype=np.int16).reshape(5, 6, 7))
+    assert numba.typeof(volume_module._tiny_voxels(vol.dtype)) == numba.typeof(vol.data)
+    monkeypatch.setattr(volume_module, "_WARM_DTYPES", set())
+    stats = vol.brick_stats(4)
+    assert stats.compile_ms > 0
+    assert numba.typeof(vol.data) in [sig[0] for sig in brick_minmax.signatures]
+    again = Volume(vol.data.copy()).brick_stats(4)
+    assert again.compile_ms == 0.0  # once per dtype and process
+    np.testing.assert_array_equal(again.vmin, stats.vmin)
+
+
 # -- per-brick label sets (issue 19, label volumes) -------------------------------------
 def _brute_sets(data, b):
     nz, ny, nx = data.shape

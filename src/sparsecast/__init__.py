@@ -32,6 +32,7 @@ from .io.particles import load_particles
 from .render.particles import render_particles
 from .transfer import PRESETS, LabelTransferFunction, TransferFunction
 from .volume import BrickStats, Volume
+from .warmup import compile_kernels
 
 __version__ = "0.1.0"
 
@@ -62,6 +63,7 @@ __all__ = [
     "VolumeDataError",
     "available_indices",
     "build_index",
+    "compile_kernels",
     "datasets",
     "load_particles",
     "load_volume",

@@ -24,7 +24,7 @@ import shutil
 import time
 from pathlib import Path
 
-__all__ = ["configure", "source_hash", "cache_dir"]
+__all__ = ["configure", "source_hash", "cache_dir", "compile_seconds", "compile_note"]
 
 #: folders of other source hashes older than this are deleted
 PRUNE_DAYS = 14
@@ -88,6 +88,7 @@ def configure() -> Path | None:
     global _configured
     if _configured is not None:
         return _configured
+    _install_compile_clock()
     base = _base()
     if base is None:
         return None
@@ -135,3 +136,60 @@ def _tolerate_foreign_indexes() -> None:
 def cache_dir() -> Path | None:
     """The folder configured by :func:`configure` (None: Numba's default)."""
     return _configured
+
+
+# -- how long this process spent compiling ------------------------------------------
+_clock = None
+
+
+def _install_compile_clock() -> None:
+    """Count the time of Numba's ``numba:compile`` events (idempotent).
+
+    Numba fires that event only when it compiles, after a cache lookup failed, so
+    a start served by the on-disk cache adds nothing. Nested compilations (a
+    kernel's callees) are counted once, in the outermost event; Numba compiles
+    under one global lock, so the events of different threads never interleave.
+    """
+    global _clock
+    if _clock is not None:
+        return
+    from numba.core import event
+
+    class _CompileClock(event.Listener):
+        def __init__(self) -> None:
+            self.seconds = 0.0
+            self._depth = 0
+            self._t0 = 0.0
+
+        def on_start(self, ev) -> None:
+            if self._depth == 0:
+                self._t0 = time.perf_counter()
+            self._depth += 1
+
+        def on_end(self, ev) -> None:
+            self._depth -= 1
+            if self._depth == 0:
+                self.seconds += time.perf_counter() - self._t0
+
+    _clock = _CompileClock()
+    event.register("numba:compile", _clock)
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent compiling kernels (cache loads not included).
+
+    Take the difference around a piece of work to report its compilation apart
+    (``sparsecast render`` prints it as ``compile N ms``).
+    """
+    _install_compile_clock()
+    return _clock.seconds  # type: ignore[union-attr]
+
+
+#: compilation shorter than this is not worth a word in a status line
+NOTE_MS = 50.0
+
+
+def compile_note(seconds: float) -> str:
+    """``"compile 1234 ms"`` for ``seconds`` of compilation, ``""`` when there was none to speak of."""
+    ms = seconds * 1e3
+    return f"compile {ms:.0f} ms" if ms >= NOTE_MS else ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from PIL import Image as PILImage
@@ -55,3 +56,20 @@ def test_bench_rejects_unknown_names(monkeypatch, capsys):
     assert code == 2 and "nope" in err
     code, _, err = run_cli(monkeypatch, capsys, "bench", "--method", "nope")
     assert code == 2 and "nope" in err
+
+
+def test_bench_help_is_whole_at_80_columns(monkeypatch, capsys):
+    """Nothing cut with an ellipsis at a narrow terminal, and the suites' durations listed."""
+    from sparsecast.bench.suites import SUITES
+
+    monkeypatch.setenv("COLUMNS", "80")
+    monkeypatch.setenv("TERMINAL_WIDTH", "80")
+    code, out, err = run_cli(monkeypatch, capsys, "bench", "--help")
+    assert code == 0, err
+    assert "…" not in out  # rich cuts a word too long for its column with an ellipsis
+    flat = " ".join(line.strip(" │") for line in out.splitlines())
+    flat = re.sub(r"\s+", " ", flat)
+    for suite in SUITES.values():
+        if suite.duration:
+            assert f"{suite.name} ({suite.short}, {suite.duration})" in flat
+    assert "bench-<time>.json" in flat and "records.json" in flat

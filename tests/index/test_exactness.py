@@ -181,10 +181,8 @@ def test_property_equal_naive(name, opts, data):
 
 @pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
 @pytest.mark.parametrize("view", [(30, 20), (0, 0)])
-def test_real_data_equal_naive(shared_data_dir, name, opts, view):
-    path = shared_data_dir / "mni152_t1_197x233x189_uint8.nrrd"
-    if not path.is_file():
-        pytest.skip(f"{path} not present")
+def test_real_data_equal_naive(shared_file, name, opts, view):
+    path = shared_file("mni152_t1_197x233x189_uint8.nrrd")
     vol = _load_cached(path)
     tf = sc.TransferFunction.preset("bone", vol.value_range)
     cam = sc.Camera.orbit(vol, *view, projection="orthographic")

@@ -26,10 +26,8 @@ def test_formats_round_trip(tmp_path, suffix):
     assert mesh.source == str(path)
 
 
-def test_shared_bunny_loads(shared_data_dir):
-    path = shared_data_dir / "stanford_bunny.ply"
-    if not path.is_file():
-        pytest.skip("shared data not present")
+def test_shared_bunny_loads(shared_file):
+    path = shared_file("stanford_bunny.ply")
     mesh = load_mesh(path)
     assert mesh.n_triangles == 69451
 

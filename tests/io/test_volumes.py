@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import gzip
 import os
-from pathlib import Path
 
 import nibabel as nib
 import nrrd
@@ -22,9 +21,6 @@ DTYPES = ["uint8", "uint16", "int16", "float32", "float64"]
 SHAPE = (3, 4, 5)  # (nz, ny, nx): non-cubic so axis mix-ups show
 SPACING = (0.5, 1.25, 2.0)
 ORIGIN = (-3.0, 4.5, 10.0)
-
-SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
-
 
 def make_data(dtype: str, shape=SHAPE) -> np.ndarray:
     """Distinct values per voxel: value = i + 10*j + 100*k (scaled into range)."""
@@ -502,10 +498,8 @@ def test_save_overwrites_existing(tmp_path):
 
 
 # ----------------------------------------------------------------------------- real data
-def test_real_mni152_nrrd():
-    path = SHARED_DATA / "mni152_t1_197x233x189_uint8.nrrd"
-    if not path.exists():
-        pytest.skip(f"real data not present: {path}")
+def test_real_mni152_nrrd(shared_file):
+    path = shared_file("mni152_t1_197x233x189_uint8.nrrd")
     vol = load_volume(path)
     assert vol.dims == (197, 233, 189)
     assert vol.shape == (189, 233, 197)

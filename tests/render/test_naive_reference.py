@@ -159,10 +159,8 @@ def test_property_shading_changes_colour_only(scene):
 # ---------------------------------------------------------------------------------
 # real data
 # ---------------------------------------------------------------------------------
-def test_mni152_matches_reference(shared_data_dir):
-    path = shared_data_dir / "mni152_t1_197x233x189_uint8.nrrd"
-    if not path.exists():
-        pytest.skip(f"{path} not present (shared data is optional)")
+def test_mni152_matches_reference(shared_file):
+    path = shared_file("mni152_t1_197x233x189_uint8.nrrd")
     vol = sc.load_volume(path)
     assert vol.dims == (197, 233, 189) and vol.dtype == np.uint8
     tf = TransferFunction.preset("bone", vol.value_range)

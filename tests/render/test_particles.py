@@ -154,6 +154,24 @@ def test_loaders(tmp_path):
         sc.load_particles(tmp_path / "nope.csv")
 
 
+def test_particle_build_warm_up_compiles_what_the_build_runs(monkeypatch):
+    """The warm-up build on a few particles takes the first-use compilation, so the timed
+    build after it compiles nothing (checked on a cold kernel cache, trivially on a warm one)."""
+    from sparsecast import kernel_cache
+    from sparsecast.index.bih import ParticleBIH
+    from sparsecast.render import particles as particles_module
+
+    monkeypatch.setattr(particles_module, "_WARM", set())
+    ps = sc.datasets.nbody_particles(400, seed=2)
+    assert particles_module._warm_build(ps, "elaborate", "preorder") > 0
+    assert particles_module._warm_build(ps, "elaborate", "preorder") == 0.0
+    before = kernel_cache.compile_seconds()
+    ParticleBIH.build(ps, "elaborate", "preorder")
+    assert kernel_cache.compile_seconds() == before
+    img = sc.render_particles(ps, sc.Camera.orbit(ps), 8, 8)
+    assert img.stats["jit_ms"] >= 0 and img.stats["build_ms"] > 0
+
+
 def _catalogue(rng, n=400):
     """A generated star catalogue: a dense cluster in a sparse field, magnitudes brighter in the cluster."""
     cluster = rng.normal(0.0, 0.05, (n // 2, 3))

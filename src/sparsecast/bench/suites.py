@@ -1,7 +1,7 @@
 """Benchmark suites as data: datasets x methods x image sizes x views x TFs.
 
-- ``quick``: the everyday run (what a plain ``sparsecast bench`` does), under two
-  minutes on two cores.
+- ``quick``: the everyday run (what a plain ``sparsecast bench`` does), about a
+  minute on two cores (each suite's measured ``duration`` is kept on it).
 - ``paper``: the papers' evaluation: every shared volume and the generated n-body
   fields at 128^3 / 256^3 / 512^3, every registered index, 512^2 and 1024^2, one
   view on each of the orbits around the three axes, sparse and dense TF, the
@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ParameterError
 from .catalog import DATASETS
 
-__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method"]
+__all__ = ["Suite", "SUITES", "orbit_views", "get_suite", "view_name", "every_method", "suites_help"]
 
 
 def orbit_views(steps: int) -> list[tuple[float, float]]:
@@ -94,10 +94,19 @@ class Suite:
         Views the peers render (the first N).
     sections : tuple of str
         Modules ``sparsecast.bench.<name>`` with a ``run(...)`` of their own tables.
+    short : str
+        A few words for ``sparsecast bench --help``.
+    duration : str or None
+        Wall time of a whole run on the reference machine of the README's Performance
+        section (2-core VM), as the README's suite table and ``--help`` print it;
+        None where not measured. The one place these figures live. (Measured before
+        the interleaved rounds of the timing: to be measured again.)
     """
 
     name: str
     description: str
+    short: str = ""
+    duration: str | None = None
     datasets: tuple[str, ...] | None = None
     methods: tuple[str, ...] | None = None
     index_modes: bool = False
@@ -156,12 +165,14 @@ SUITES: dict[str, Suite] = {
         # on one view, keep the everyday run under two minutes on two cores.
         Suite("quick", "the demo and MNI152 (other shared volumes: -d NAME, or --suite paper), 512^2, two views, "
               "every index",
-              repeat=3, dense_views=1),
+              short="the default run", duration="70 s", repeat=3, dense_views=1),
         Suite(
             "paper",
             "every shared volume and the n-body fields at 128^3/256^3/512^3, every index, "
             "512^2 and 1024^2, one view on each orbit around x, y, z (3 timed rounds and a warm-up "
             "per view, interleaved), sparse + dense TF, peers, BIH and RBVH sections",
+            short="the papers' evaluation",
+            duration="13.8 min",
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
             # Budget (2 cores, ~30 min): 4 frames (warm-up + 3 rounds) on 3 views cost what
@@ -179,16 +190,23 @@ SUITES: dict[str, Suite] = {
         # One view (not two) pays for the 3 interleaved rounds and the warm-up.
         Suite("sweep", "the synthetic cluster sweeps of Fig. 5 at 256^3 (a: growing radius, b: more clusters), "
               "one view, 3 timed rounds and a warm-up",
+              short="Fig. 5 clusters", duration="28 s",
               datasets=tuple(n for n in DATASETS if n.startswith(("fig5a-256-", "fig5b-256-"))),
               views=((30.0, 20.0),), dense_tf=False, repeat=3, warmup=1, irt=False),
-        Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)",
+        Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)", short="BIH section",
               datasets=(), irt=False, sections=("bih",)),
-        Suite("surface", "the RBVH section only (approximate surface ray casting)",
+        Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
               datasets=(), irt=False, sections=("surface",)),
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
-              "CT/MR volumes (bench.features)", datasets=(), irt=False, sections=("features",)),
+              "CT/MR volumes (bench.features)", short="features section", datasets=(), irt=False,
+              sections=("features",)),
     )
 }
+
+
+def suites_help() -> str:
+    """``quick (the default run, 70 s), paper (...), ...``: the suites as ``--suite``'s help lists them."""
+    return ", ".join(f"{s.name} ({s.short}" + (f", {s.duration})" if s.duration else ")") for s in SUITES.values())
 
 
 def get_suite(name: str) -> Suite:

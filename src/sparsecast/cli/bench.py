@@ -11,6 +11,7 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.checks import as_int, fail
+from ..bench.suites import suites_help
 from ..errors import ParameterError
 from .app import app, err, out, plain_console
 from .parse import none_list, parse_index_spec, parse_size
@@ -20,7 +21,7 @@ __all__ = ["bench"]
 
 @app.command()
 def bench(
-    suite: Annotated[Optional[str], typer.Option(help="quick (the default run), paper (the papers' evaluation, ~30 min), sweep (Fig. 5 clusters), bih or surface; resumable, with a Markdown report and figures.")] = None,
+    suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: a 2-core machine, before the interleaved timing).")] = None,
     dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's.")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[Optional[bool], typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space (default: yes).")] = None,
@@ -33,7 +34,7 @@ def bench(
     peer_views: Annotated[Optional[int], typer.Option(help="Views the peers render (the first N; default 2, paper 1).")] = None,
     dense_views: Annotated[Optional[int], typer.Option(help="Views rendered with the dense TF (the first N; quick 1, paper 2).")] = None,
     section: Annotated[Optional[list[str]], typer.Option("--section", help="Extra section module: bih, surface (repeatable; 'none' for none).")] = None,
-    json_path: Annotated[Optional[Path], typer.Option("--json", help="Records file (default bench-results/bench-<time>.json, or bench-results/<suite>/records.json); a .jsonl journal beside it makes reruns resume.")] = None,
+    json_path: Annotated[Optional[Path], typer.Option("--json", help="Records file (default: bench-<time>.json in bench-results/, with --suite records.json in bench-results/<suite>/); a .jsonl journal beside it makes reruns resume.")] = None,
     report: Annotated[Optional[Path], typer.Option("--report", help="Write the Markdown report here (default with --suite: BENCHMARKS.md beside the records).")] = None,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Also write matplotlib figures (PNG) into this folder.")] = None,
     images: Annotated[Optional[Path], typer.Option("--images", help="Save our and the peers' images (PNG) into this folder.")] = None,

@@ -9,6 +9,7 @@ import numpy as np
 import typer
 from rich.text import Text
 
+from ..kernel_cache import compile_note, compile_seconds
 from .app import (
     AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out,
 )
@@ -52,10 +53,12 @@ def info(
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
     tfn = make_tf(tf, vol, tf_range, threshold)
     lo, hi = vol.value_range
-    bricks = vol.brick_stats(brick_size)
+    c0 = compile_seconds()
+    bricks = vol.brick_stats(brick_size)  # its build_ms excludes first-use compilation
     t0 = time.perf_counter()
     nonempty = tfn.classify_bricks(vol, brick_size)
     classify_ms = (time.perf_counter() - t0) * 1e3
+    note = compile_note(compile_seconds() - c0)
     nx, ny, nz = vol.dims
     out.print(Text.assemble((vol.name, "bold"), "  ", str(file) if file else "(built-in demo)"))
     out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.nbytes / 2**20:.1f} MiB, dtype {vol.dtype})")
@@ -66,7 +69,7 @@ def info(
     out.print(
         f"  occupancy {100 * nonempty.mean():.2f} % of {nonempty.size} bricks of {brick_size}^3 are non-empty "
         f"for TF {tfn.name!r} over [{tfn.value_range[0]:g}, {tfn.value_range[1]:g}] "
-        f"(brick stats {bricks.build_ms:.1f} ms, classify {classify_ms:.3f} ms)"
+        f"(brick stats {bricks.build_ms:.1f} ms, classify {classify_ms:.3f} ms" + (f"; {note})" if note else ")")
     )
     if tfn.sampling == "nearest" or (file is not None and vol.dtype.kind in "ui" and vol.value_range[1] < 256
                                      and _few_ids(vol)):

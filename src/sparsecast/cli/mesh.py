@@ -13,6 +13,7 @@ from .._util.checks import one_of
 from ..errors import ParameterError
 from .._util.atomic import check_output
 from ..image import IMAGE_SUFFIXES
+from ..kernel_cache import compile_note, compile_seconds
 from .app import AzimuthOpt, ElevationOpt, OutputOpt, ProjectionOpt, SizeOpt, UpOpt, ZoomOpt, app, out, warn
 from .parse import parse_size
 from ..surface.normals import DEFAULT_K as NORMALS_K
@@ -45,7 +46,7 @@ def render_mesh(
     from ..camera import Camera
     from ..axes import axis_vector
     from ..surface import PointCloud, build_bvh, build_rbvh, render_surface
-    from ..surface.mesh import icosphere, orient, orient_points
+    from ..surface.mesh import orient, orient_points, tiny_points, warmup_mesh
     from ..surface.render import MODES
 
     one_of(index, "--index", INDICES)
@@ -72,23 +73,23 @@ def render_mesh(
         surface = orient(surface, up)
         what = f"{surface.n_triangles} triangles" + (f" after dropping {dropped} degenerate" if drop_degenerate else "")
     build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else build_bvh
-    # Compile the build kernels on a tiny mesh first (Numba caches them on disk), so the
-    # build time printed below is the build's, not the first run's JIT compilation.
-    t_jit = time.perf_counter()
-    tiny = icosphere(3)
-    build(tiny if not isinstance(surface, PointCloud) else PointCloud(tiny.vertices, tiny.vertices, 0.1, "warm-up"))
-    jit_ms = (time.perf_counter() - t_jit) * 1e3
+    # Compile the build kernels on a tiny surface of the same kind first (Numba caches
+    # them on disk), so the build time printed below is the build's, not the first
+    # run's JIT compilation; render_surface does the same for its kernel.
+    c0 = compile_seconds()
+    build(tiny_points() if isinstance(surface, PointCloud) else warmup_mesh())
     idx = build(surface)
     cam = Camera.orbit(surface, azimuth, elevation, projection=projection, zoom=zoom)  # type: ignore[arg-type]
     img = render_surface(idx, cam, width, height, mode=mode)
     img.save(output)
     s, st = img.stats, idx.stats()
+    note = compile_note(compile_seconds() - c0)
     out.print(
         f"wrote {output} ({width}x{height}, {file.name}: {what}, index {index}"
         + (f" {quality}, {st['tiles']} tiles" if index == "rbvh" else "")
         + f", {st['nodes']} nodes, {st['bytes'] / 2**20:.1f} MiB; build {st['build_ms']:.0f} ms, "
-        f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; {time.perf_counter() - t0:.1f} s total"
-        + (f", of which {jit_ms / 1e3:.1f} s compiling the build kernels on first use)" if jit_ms > 1000 else ")")
+        f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; " + (f"{note}, " if note else "")
+        + f"{time.perf_counter() - t0:.1f} s total)"
     )
 
 

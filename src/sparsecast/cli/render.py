@@ -11,6 +11,7 @@ import typer
 from .._util.atomic import check_output
 from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
+from ..kernel_cache import compile_note, compile_seconds
 from .app import (
     AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, OutputOpt, ProjectionOpt, SizeOpt,
     SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
@@ -112,6 +113,7 @@ def render(
                                      mode=mode, iso=iso or None, **index_options),
                       load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
         return
+    c0 = compile_seconds()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
     frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
@@ -128,9 +130,13 @@ def render(
         img.save(array)
     s = img.stats
     chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
+    # First-use compilation is timed apart from the build and the frame (both exclude it),
+    # and named only when there was some: a start from the kernel cache prints none.
+    note = compile_note(compile_seconds() - c0)
     out.print(
         f"wrote {output} ({width}x{height}, {vol.name} {'x'.join(map(str, vol.dims))} {vol.dtype}, "
         + (f"view {frame['view']} ({''.join(vol.orientation)}), " if "view" in frame else "")
-        + f"{chosen}, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
-        f"{s['msamples_per_s']:.1f} M samples/s; {time.perf_counter() - t0:.1f} s total)"
+        + f"{chosen}, build {s['build_ms']:.0f} ms, {s['ms']:.0f} ms render, {s['samples'] / 1e6:.1f} M samples, "
+        f"{s['msamples_per_s']:.1f} M samples/s; " + (f"{note}, " if note else "")
+        + f"{time.perf_counter() - t0:.1f} s total)"
     )

@@ -53,6 +53,9 @@ class SpatialIndex:
         self.tf = tf
         self.build_phases: dict[str, float] = {}
         self.nbytes: int = 0
+        #: first-use kernel compilation (or cache load) before the build, set by
+        #: build_index and kept out of build_ms (see index.warm)
+        self.compile_ms: float = 0.0
         #: set by build_index(name="auto"): occupancy, editing, reason of the choice
         self.auto: dict | None = None
 
@@ -73,6 +76,7 @@ class SpatialIndex:
         return {
             "index": self.name,
             "build_ms": self.build_ms,
+            "compile_ms": self.compile_ms,
             "phases": dict(self.build_phases),
             "bytes": int(self.nbytes),
         }

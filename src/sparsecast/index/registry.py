@@ -17,6 +17,7 @@ from ..errors import ParameterError
 from ..kernels.parallel import parallel_section
 from .auto import AUTO, choose_index
 from .base import SpatialIndex
+from .warm import warm_build
 
 _INDICES: dict[str, type[SpatialIndex]] = {}
 
@@ -120,6 +121,11 @@ def check_index_options(name: str, options: dict[str, Any]) -> None:
         raise ParameterError(msg)
 
 
+def index_class(name: str) -> type[SpatialIndex]:
+    """The class registered under ``name`` (:class:`ParameterError` for an unknown name)."""
+    return _index_class(name)
+
+
 def _index_class(name: str) -> type[SpatialIndex]:
     cls = _INDICES.get(name)
     if cls is None:
@@ -142,6 +148,12 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
         Passed to the index class (e.g. ``cell=8``); :func:`index_options` lists
         what each index takes.
 
+    Returns
+    -------
+    SpatialIndex
+        Its ``build_ms`` excludes first-use kernel compilation, which is in
+        ``compile_ms`` (0 once this index and dtype were built in the process).
+
     Raises
     ------
     ParameterError
@@ -152,9 +164,13 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
     if name == AUTO:
         name, auto = choose_index(volume, tf, names=available_indices())
     cls = _index_class(name)
+    with parallel_section():  # build kernels use prange (see kernels.parallel)
+        # First use in this process: compile (or load) the build kernels on a tiny
+        # volume of this dtype, so that build_ms is the build's time, not Numba's.
+        compile_ms = warm_build(cls, volume, tf, options)
     t0 = time.perf_counter()
     try:
-        with parallel_section():  # build kernels use prange (see kernels.parallel)
+        with parallel_section():
             idx = cls(volume, tf, **options)
     except TypeError as exc:  # an index that takes **options and forwards them elsewhere
         if "unexpected keyword" not in str(exc):
@@ -162,6 +178,7 @@ def build_index(volume, tf, name: str = "naive", **options) -> SpatialIndex:
         raise ParameterError(f"index {name!r}: {exc}") from None
     if not idx.build_phases:
         idx.build_phases = {"build": (time.perf_counter() - t0) * 1e3}
+    idx.compile_ms = compile_ms
     if auto is not None:
         idx.auto = auto  # why "auto" chose it: render() reports it in stats["auto"]
     return idx

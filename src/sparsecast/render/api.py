@@ -142,7 +142,8 @@ def render(
     Image
         Premultiplied float32 RGBA and ``stats``: ``ms`` (marching only), ``samples``,
         ``samples_nonempty``, ``rays``, ``build_ms`` (index built on the fly),
-        ``jit_ms`` (one-off kernel compilation or cache load, kept out of ``ms``).
+        ``jit_ms`` (one-off kernel compilation or cache load of the driver and of an
+        index built on the fly, kept out of ``ms`` and ``build_ms``).
 
     Raises
     ------
@@ -197,9 +198,11 @@ def render(
     # The iso modes skip bricks by a TF that is non-empty around the isovalues.
     classify = tf if mode == "dvr" else tf.with_spikes(mode_marker.values, keep_opacity=mode == "iso+dvr")
     build_ms = 0.0
+    build_jit_ms = 0.0
     if isinstance(index, str):
         index = build_index(volume, classify, index, **index_options)
         build_ms = index.build_ms
+        build_jit_ms = index.compile_ms
     elif isinstance(index, SpatialIndex):
         if index_options:
             raise ParameterError(
@@ -241,7 +244,7 @@ def render(
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
     data = volume.data
-    jit_ms = _warm_up(record, data, frame, init)
+    jit_ms = build_jit_ms + _warm_up(record, data, frame, init)
     rgba = np.empty((h, w, 4), np.float32)
     samples = np.empty((h, w), np.int32)
     nonempty = np.empty((h, w), np.int32)

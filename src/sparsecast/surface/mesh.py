@@ -17,7 +17,7 @@ from ..neighbours import typical_spacing
 
 __all__ = ["MeshDataError", "DegenerateFacesError", "MeshWarning", "DegenerateFacesWarning", "DEGENERATE_FRACTION",
            "TriangleMesh", "PointCloud", "icosphere", "subdivide", "grid_plane", "box_mesh", "orient", "z_up",
-           "UP_AXES", "orient_points", "default_disc_radius"]
+           "UP_AXES", "orient_points", "default_disc_radius", "tiny_points", "warmup_mesh"]
 
 #: A mesh may keep up to this fraction of its faces degenerate (zero area): 0.1 %. Scanned
 #: and converted meshes often carry a handful (the Stanford dragon: 111 of 871,414); they
@@ -341,6 +341,37 @@ def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriangleMesh:
 
     s = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return TriangleMesh(np.asarray(s.vertices), np.asarray(s.faces), f"icosphere({subdivisions})")
+
+
+def warmup_mesh() -> TriangleMesh:
+    """A small mesh that takes every path of the surface builds: a sphere beside a small flat plate.
+
+    Two components (the RBVH's object split), curved triangles that stay exact leaves
+    and a plate that becomes height-field tiles at every quality preset (a sphere
+    alone makes no tile at Q0, and the atlas kernels then compiled inside the first
+    real build). 1,500 triangles: milliseconds to build once compiled.
+    """
+    sphere = icosphere(3)
+    # Small: a tile's texel count grows with its world-space area (rho texels per unit
+    # area), and Q0's resolution cap refuses tiles bigger than about 1e-3 units^2.
+    plate = grid_plane(16, size=0.05, z=-1.5)
+    v = np.concatenate([sphere.vertices, plate.vertices])
+    f = np.concatenate([sphere.faces, plate.faces + len(sphere.vertices)])
+    return TriangleMesh(v, f, "warm-up sphere and plate")
+
+
+def tiny_points(n: int = 1500, radius: float = 1.0) -> PointCloud:
+    """``n`` oriented points evenly spread on a sphere (a Fibonacci lattice), normals outward.
+
+    Small enough to build in milliseconds once compiled; the CLI and
+    :func:`sparsecast.compile_kernels` build it to compile the point-cloud kernels.
+    """
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5.0 ** 0.5) * i
+    r = np.sqrt(1.0 - z * z)
+    unit = np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
+    return PointCloud(radius * unit, unit, source=f"sphere points({n})")
 
 
 def grid_plane(n: int = 8, size: float = 1.0, z: float = 0.0) -> TriangleMesh:

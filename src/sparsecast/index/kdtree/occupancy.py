@@ -8,7 +8,7 @@ Cell ``(cz, cy, cx)`` is the unit cube between voxels ``c`` and ``c + 1`` on eac
 axis (index space), clipped to the domain; an axis of ``n`` voxels has
 ``max(n - 1, 1)`` cells. A cell is *occupied* when the TF opacity is non-zero for
 some value in ``[min, max]`` of the voxels ``c - 1 .. c + 2`` on each axis: its own
-eight corners plus the one-voxel apron (DESIGN.md "Emptiness"). Every cell whose
+eight corners plus the one-voxel apron (docs/architecture.md, "Emptiness"). Every cell whose
 own corner range is non-empty is therefore occupied together with its 26
 neighbours, so a lattice sample that rounding puts an ulp outside its cell is
 still inside the occupied set.

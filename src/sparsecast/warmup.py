@@ -1,0 +1,324 @@
+"""Compile every kernel ahead of use: ``sparsecast compile`` and :func:`compile_kernels`.
+
+Numba compiles a kernel the first time a process calls it with new argument types,
+and the DVR driver specialises per index record type *and* voxel dtype: a cold start
+of one index on one dtype takes tens of seconds, the surface builds as long again.
+The kernels are cached on disk (:mod:`sparsecast.kernel_cache`), so compiling them
+once, here, makes every later process start from the cache.
+
+The plan (:func:`plan`) is a list of steps, one per kernel group, each of which runs
+the real code path on a tiny input: per dtype, the brick statistics and, per index,
+a build and an unshaded and a shaded 16x16 frame (the driver specialisation for that
+record type and dtype); the exact BVH and the RBVH builds over a small mesh and a
+point cloud, their camera and free-ray kernels; the particle BIH and its renderer.
+A step that finds its kernels in the cache takes milliseconds.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import kernel_cache
+from ._util.checks import fail, one_of
+from .camera import Camera
+from .errors import ParameterError
+from .index import available_indices, build_index, parse_index_spec
+from .index.auto import EDITING_INDEX, SPARSE_INDEX
+from .index.warm import tiny_volume
+from .render import render
+from .transfer import TransferFunction
+from .volume import SUPPORTED_DTYPES
+
+__all__ = ["compile_kernels", "plan", "CompileStep", "CompileReport", "GROUPS", "DEFAULT_DTYPES",
+           "APPROXIMATE_MODES", "LABEL_INDICES"]
+
+#: the kernel groups, in plan order (``sparsecast compile --only``)
+GROUPS = ("volume", "surface", "particles")
+
+#: dtypes compiled by default: the common ones (8- and 16-bit scans, float fields);
+#: int16 and float64 cost a full driver specialisation each and are asked for by name
+DEFAULT_DTYPES = ("uint8", "uint16", "float32")
+
+#: BIH build options beyond the default mode: each approximate mode has its own
+#: record type and integrator, hence its own driver specialisation
+APPROXIMATE_MODES = ("bih:mode=single-sample", "bih:mode=multi-sample")
+
+#: the indices ``index="auto"`` picks from (naive, the sparse and the editing index):
+#: label volumes (nearest sampling, a driver specialisation of its own) are compiled for
+#: these by default, for the integer dtypes; ``indices=`` names others
+LABEL_INDICES = ("naive", SPARSE_INDEX, EDITING_INDEX)
+
+#: pixels per side of a warm-up frame
+FRAME = 16
+
+
+@dataclass(frozen=True)
+class CompileStep:
+    """One kernel group to compile: ``run()`` exercises it on a tiny input.
+
+    Attributes
+    ----------
+    group : str
+        One of :data:`GROUPS`.
+    label : str
+        What it compiles, e.g. ``"volume uint8 kdtree-deep: build, frame"``.
+    run : callable
+        Takes no argument; returns nothing.
+    """
+
+    group: str
+    label: str
+    run: Callable[[], None] = field(repr=False)
+
+
+@dataclass
+class CompileReport:
+    """What :func:`compile_kernels` did.
+
+    Attributes
+    ----------
+    steps : list of (label, ms, compile_ms)
+        Per step: wall time (compilation, cache loads and the tiny run), and the
+        part of it Numba spent compiling (0 when everything came from the cache).
+    total_ms, compile_ms : float
+        Sums over the steps.
+    cache_dir : Path or None
+        The kernel cache folder (None: Numba's default beside the sources).
+    """
+
+    steps: list[tuple[str, float, float]]
+    total_ms: float
+    compile_ms: float
+    cache_dir: Path | None
+
+
+def _dtypes(dtypes: str | Sequence[str] | None, name: str) -> list[np.dtype]:
+    names = [str(np.dtype(d)) for d in SUPPORTED_DTYPES]
+    if dtypes is None:
+        return [np.dtype(d) for d in DEFAULT_DTYPES]
+    if isinstance(dtypes, str):
+        dtypes = [dtypes]
+    if list(dtypes) == ["all"]:
+        return list(SUPPORTED_DTYPES)
+    out: list[np.dtype] = []
+    for d in dtypes:
+        one_of(str(d), name, names, expected=f"'all' or some of {', '.join(names)}")
+        if np.dtype(d) not in out:
+            out.append(np.dtype(d))
+    return out
+
+
+def _index_specs(indices: Sequence[str] | None, name: str) -> list[str]:
+    if indices is None:
+        # The package's own indices (a test's or a user's registered one renders through
+        # the uncached driver copy: nothing to keep), then the BIH's approximate modes.
+        from .index.registry import index_class
+
+        own = [n for n in available_indices() if index_class(n).__module__.startswith("sparsecast.")]
+        return own + list(APPROXIMATE_MODES)
+    if isinstance(indices, str):
+        indices = [indices]
+    specs = []
+    for spec in indices:
+        try:
+            index, _ = parse_index_spec(spec)
+        except ParameterError as exc:  # an unknown index or option, named
+            raise ParameterError(f"{name}: {exc}") from None
+        if index == "auto":
+            raise fail(name, "index names (auto picks one of them at render time)", spec)
+        specs.append(spec)
+    return specs
+
+
+def plan(
+    dtypes: str | Sequence[str] | None = None,
+    indices: Sequence[str] | None = None,
+    groups: Sequence[str] | None = None,
+    *,
+    names: tuple[str, str, str] = ("dtypes", "indices", "groups"),
+) -> list[CompileStep]:
+    """The steps :func:`compile_kernels` runs, in order (nothing is compiled here).
+
+    Parameters
+    ----------
+    dtypes : sequence of str, or "all", optional
+        Voxel dtypes of the volume steps (default :data:`DEFAULT_DTYPES`).
+    indices : sequence of str, optional
+        Index specs ``NAME[:KEY=VALUE,...]`` of the volume steps (default: every
+        index of the package, and the BIH's approximate modes).
+    groups : sequence of str, optional
+        Some of :data:`GROUPS` (default all).
+    names : (str, str, str)
+        What error messages call the three (the CLI: ``--dtype``, ``--index``, ``--only``).
+
+    Returns
+    -------
+    list of CompileStep
+        Volume steps: per dtype, the brick statistics, then one per index spec, then
+        for integer dtypes a label TF per exact index of :data:`LABEL_INDICES` (or of
+        ``indices``); then the surface steps, then the particles step.
+
+    Raises
+    ------
+    ParameterError
+        An unknown dtype, index, index option or group.
+    """
+    chosen = list(GROUPS) if groups is None else [
+        one_of(g, names[2], GROUPS, expected="some of " + ", ".join(GROUPS)) for g in groups]
+    steps: list[CompileStep] = []
+    if "volume" in chosen:
+        specs = _index_specs(indices, names[1])
+        label_specs = [s for s in (specs if indices is not None else LABEL_INDICES)
+                       if s in specs and parse_index_spec(s)[1].get("mode", "ess") == "ess"]
+        for dtype in _dtypes(dtypes, names[0]):
+            steps.append(CompileStep("volume", f"volume {dtype}: brick statistics",
+                                     _bind(_brick_stats, dtype)))
+            steps.extend(CompileStep("volume", f"volume {dtype} {spec}: build, frame", _bind(_volume, dtype, spec))
+                         for spec in specs)
+            if dtype.kind in "iu":  # label volumes: integer ids, nearest sampling
+                steps.extend(CompileStep("volume", f"volume {dtype} labels {spec}: build, frame",
+                                         _bind(_labels, dtype, spec)) for spec in label_specs)
+    if "surface" in chosen:
+        steps += [
+            CompileStep("surface", "surface BVH: build", _bvh_build),
+            CompileStep("surface", "surface RBVH: build (mesh)", _rbvh_build),
+            CompileStep("surface", "surface RBVH: build (points)", _rbvh_points),
+            CompileStep("surface", "surface RBVH: mip levels", _rbvh_mips),
+            CompileStep("surface", "surface ray casting: camera and free rays", _surface_rays),
+        ]
+    if "particles" in chosen:
+        steps.append(CompileStep("particles", "particles: BIH build, frame", _particles))
+    return steps
+
+
+def compile_kernels(
+    dtypes: str | Sequence[str] | None = None,
+    indices: Sequence[str] | None = None,
+    groups: Sequence[str] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    *,
+    names: tuple[str, str, str] = ("dtypes", "indices", "groups"),
+) -> CompileReport:
+    """Compile (or load from the on-disk cache) every kernel of the chosen groups.
+
+    Parameters
+    ----------
+    dtypes, indices, groups, names
+        See :func:`plan`.
+    progress : callable(done, total, label), optional
+        Called before each step (``done`` steps finished, ``label`` the next one)
+        and once more with ``done == total`` and ``label == ""``.
+
+    Returns
+    -------
+    CompileReport
+        Per-step and total times, and the cache folder.
+
+    Examples
+    --------
+    >>> import sparsecast as sc
+    >>> report = sc.compile_kernels(dtypes=["uint8"], indices=["naive"], groups=["volume"])  # doctest: +SKIP
+    >>> report.cache_dir                                                                      # doctest: +SKIP
+    PosixPath('/home/me/.cache/sparsecast/kernels-...')
+    """
+    steps = plan(dtypes, indices, groups, names=names)
+    done: list[tuple[str, float, float]] = []
+    for i, step in enumerate(steps):
+        if progress is not None:
+            progress(i, len(steps), step.label)
+        c0 = kernel_cache.compile_seconds()
+        t0 = time.perf_counter()
+        step.run()
+        done.append((step.label, (time.perf_counter() - t0) * 1e3, (kernel_cache.compile_seconds() - c0) * 1e3))
+    if progress is not None:
+        progress(len(steps), len(steps), "")
+    return CompileReport(done, sum(s[1] for s in done), sum(s[2] for s in done), kernel_cache.cache_dir())
+
+
+def _bind(fn: Callable, *args) -> Callable[[], None]:
+    return lambda: fn(*args)
+
+
+# -- the steps -------------------------------------------------------------------
+def _tiny(dtype: np.dtype):
+    """A tiny volume of ``dtype`` spanning the dtype's natural range, its TF and a camera."""
+    hi = 1.0 if dtype.kind == "f" else float(min(np.iinfo(dtype).max, 4095))
+    vol = tiny_volume(dtype, (0.0, hi))
+    tf = TransferFunction.preset("viridis", value_range=vol.value_range)
+    return vol, tf, Camera.orbit(vol, 30, 20)
+
+
+def _brick_stats(dtype: np.dtype) -> None:
+    vol, tf, _ = _tiny(dtype)
+    b = vol.brick_stats(8)
+    tf.classify(b.vmin, b.vmax)
+
+
+def _volume(dtype: np.dtype, spec: str) -> None:
+    vol, tf, cam = _tiny(dtype)
+    name, options = parse_index_spec(spec)
+    idx = build_index(vol, tf, name, **options)
+    render(vol, tf, cam, FRAME, FRAME, index=idx)
+    render(vol, tf, cam, FRAME, FRAME, index=idx, shading=True)  # the renderer's shaded path
+
+
+def _labels(dtype: np.dtype, spec: str) -> None:
+    tf = TransferFunction.labels([1, 2])
+    vol = tiny_volume(dtype, (0.0, 2.0), labels=(1, 2))
+    name, options = parse_index_spec(spec)
+    idx = build_index(vol, tf, name, **options)
+    render(vol, tf, Camera.orbit(vol, 30, 20), FRAME, FRAME, index=idx)
+
+
+def _bvh_build() -> None:
+    from .surface import build_bvh
+    from .surface.mesh import warmup_mesh
+
+    build_bvh(warmup_mesh())
+
+
+def _rbvh_build() -> None:
+    from .surface import build_rbvh
+    from .surface.mesh import warmup_mesh
+
+    build_rbvh(warmup_mesh())
+
+
+def _rbvh_points() -> None:
+    from .surface import build_rbvh
+    from .surface.mesh import tiny_points
+
+    build_rbvh(tiny_points())
+
+
+def _rbvh_mips() -> None:
+    from .surface import build_rbvh
+    from .surface.mesh import warmup_mesh
+
+    build_rbvh(warmup_mesh(), mip_levels=2)
+
+
+def _surface_rays() -> None:
+    from .surface import build_bvh, build_rbvh, raycast, render_surface
+    from .surface.mesh import warmup_mesh
+
+    mesh = warmup_mesh()
+    cam = Camera.orbit(mesh, 30, 20)
+    origins = np.array([[0.0, 0.0, 5.0]])
+    directions = np.array([[0.0, 0.0, -1.0]])
+    for idx in (build_bvh(mesh), build_rbvh(mesh)):
+        render_surface(idx, cam, FRAME, FRAME)
+        raycast(idx, origins, directions, footprint=(0.001, 0.001))
+
+
+def _particles() -> None:
+    from .datasets import nbody_particles
+    from .render.particles import render_particles
+
+    ps = nbody_particles(2000)
+    render_particles(ps, Camera.orbit(ps, 30, 20), FRAME, FRAME)

@@ -1,0 +1,141 @@
+"""``sparsecast compile``: the plan, bad options, and a real run into a fresh kernel cache."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli_runner import run_cli
+from sparsecast import available_indices, kernel_cache
+from sparsecast.index.registry import index_class
+from sparsecast.warmup import APPROXIMATE_MODES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, plan
+
+
+def test_full_plan_covers_every_index_dtype_and_group():
+    steps = plan()
+    labels = [s.label for s in steps]
+    assert len(labels) == len(set(labels))
+    assert [g for g in GROUPS if any(s.group == g for s in steps)] == list(GROUPS)
+    # The package's own indices: one a test registers (test-bbox) renders uncached anyway.
+    own = [n for n in available_indices() if index_class(n).__module__.startswith("sparsecast.")]
+    assert not any(n not in own and f" {n}: " in label for n in available_indices() for label in labels)
+    specs = own + list(APPROXIMATE_MODES)
+    for dtype in DEFAULT_DTYPES:
+        assert f"volume {dtype}: brick statistics" in labels
+        for spec in specs:
+            assert f"volume {dtype} {spec}: build, frame" in labels
+        if dtype.startswith(("uint", "int")):
+            for spec in LABEL_INDICES:
+                assert f"volume {dtype} labels {spec}: build, frame" in labels
+    volume = [s for s in steps if s.group == "volume"]
+    integer = [d for d in DEFAULT_DTYPES if d.startswith(("uint", "int"))]
+    assert len(volume) == len(DEFAULT_DTYPES) * (1 + len(specs)) + len(integer) * len(LABEL_INDICES)
+    assert {s.label for s in plan(dtypes="all") if s.label.endswith("brick statistics")} == {
+        f"volume {d}: brick statistics" for d in ("uint8", "uint16", "int16", "float32", "float64")}
+
+
+def test_plan_subsets():
+    steps = plan(dtypes=["float32"], indices=["grid-pc:cell=8"], groups=["volume"])
+    assert [s.label for s in steps] == ["volume float32: brick statistics", "volume float32 grid-pc:cell=8: build, frame"]
+    # Label TFs (nearest sampling) for integer dtypes and the exact indices asked for.
+    steps = plan(dtypes=["uint16"], indices=["lbvh", "bih:mode=multi-sample"], groups=["volume"])
+    assert [s.label for s in steps] == ["volume uint16: brick statistics", "volume uint16 lbvh: build, frame",
+                                        "volume uint16 bih:mode=multi-sample: build, frame",
+                                        "volume uint16 labels lbvh: build, frame"]
+    assert {s.group for s in plan(groups=["surface", "particles"])} == {"surface", "particles"}
+
+
+def test_list_prints_the_plan_without_compiling(monkeypatch, capsys):
+    code, out, err = run_cli(monkeypatch, capsys, "compile", "--list", "--only", "particles")
+    assert code == 0, err
+    assert "particles: BIH build, frame" in out and "1 steps" in out
+    assert str(kernel_cache.cache_dir() or "Numba default") in out
+
+
+@pytest.mark.parametrize("args, option, found", [
+    (["--dtype", "int8"], "--dtype", "'int8'"),
+    (["--only", "vol"], "--only", "'vol'"),
+    (["--index", "nope"], "--index", "'nope'"),
+    (["--index", "grid-pc:cel=8"], "--index", "'cel'"),
+    (["--index", "auto"], "--index", "'auto'"),
+])
+def test_bad_options_are_one_error(monkeypatch, capsys, args, option, found):
+    code, out, err = run_cli(monkeypatch, capsys, "compile", *args)
+    assert code == 2 and out == ""
+    assert err.startswith(f"error: {option}: ") and found in err and len(err.strip().splitlines()) == 1
+
+
+def _sparsecast(cache: Path, *args: str) -> str:
+    """stdout of ``python -m sparsecast ARGS`` in a subprocess using the kernel cache under ``cache``."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "SPARSECAST_CACHE_DIR")}
+    env["SPARSECAST_CACHE_DIR"] = str(cache)
+    res = subprocess.run([sys.executable, "-m", "sparsecast", *args], env=env,
+                         capture_output=True, text=True, timeout=240)
+    assert res.returncode == 0, res.stderr
+    return res.stdout
+
+
+def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path):
+    """A subset (one dtype, one index: two steps) in a subprocess with its own cache folder."""
+    args = ("compile", "--only", "volume", "--dtype", "float32", "--index", "naive")
+    cache = tmp_path / "cache"
+    first = _sparsecast(cache, *args)
+    m = re.search(r"compiled 2 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s", first)
+    assert m, first
+    assert float(m.group(2)) > 0
+    folder = cache / f"kernels-{kernel_cache.source_hash()}"
+    assert f"cache {folder}" in first
+    cached = {p.name.split("-")[0] for p in folder.rglob("*.nbi")}
+    # The driver (specialised for the naive record and float32) and the brick kernel are cached.
+    assert {"driver.dvr_tile", "driver.dvr_tiles", "bricks.brick_minmax"} <= cached, sorted(cached)
+    second = _sparsecast(cache, *args)
+    m2 = re.search(r"Numba compiling ([\d.]+) s", second)
+    assert m2 and float(m2.group(1)) == 0.0, second  # everything came from the cache
+    # What compile compiled is what render runs: a float32 volume with that index compiles nothing.
+    vol = tmp_path / "vol.npy"
+    np.save(vol, np.random.default_rng(1).random((20, 18, 16)).astype(np.float32))
+    line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "-o", str(tmp_path / "a.png"))
+    assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
+
+
+def _fake_clock(monkeypatch, module: str, seconds: list[float]) -> None:
+    """Make ``module``'s compile clock read ``seconds`` in turn (then the last value)."""
+    values = iter(seconds)
+    last = [seconds[-1]]
+
+    def clock() -> float:
+        last[0] = next(values, last[0])
+        return last[0]
+
+    monkeypatch.setattr(f"sparsecast.cli.{module}.compile_seconds", clock)
+
+
+def _mesh_file(tmp_path: Path) -> Path:
+    import trimesh
+
+    from sparsecast.surface.mesh import icosphere
+
+    path = tmp_path / "sphere.ply"
+    s = icosphere(2)
+    trimesh.Trimesh(s.vertices, s.faces, process=False).export(path)
+    return path
+
+
+@pytest.mark.parametrize("command", ["render", "info", "render-mesh"])
+@pytest.mark.parametrize("compiled", [0.0, 2.5])
+def test_status_line_names_compilation_apart_only_when_there_was_some(monkeypatch, capsys, tmp_path,
+                                                                      small_volume_file, command, compiled):
+    module = {"render": "render", "info": "info", "render-mesh": "mesh"}[command]
+    _fake_clock(monkeypatch, module, [10.0, 10.0 + compiled])
+    args = {"render": [str(small_volume_file), "--size", "16x16", "-o", str(tmp_path / "a.png")],
+            "info": [str(small_volume_file)],
+            "render-mesh": [str(_mesh_file(tmp_path)), "--size", "16x16", "-o", str(tmp_path / "m.png")]}[command]
+    code, out, err = run_cli(monkeypatch, capsys, command, *args)
+    assert code == 0, err
+    assert re.findall(r"compile \d+ ms", out) == (["compile 2500 ms"] if compiled else []), out
