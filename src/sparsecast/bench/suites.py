@@ -198,7 +198,7 @@ SUITES: dict[str, Suite] = {
         Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
               datasets=(), irt=False, sections=("surface",)),
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
-              "CT/MR volumes (bench.features)", short="features section", datasets=(), irt=False,
+              "CT/MR volumes (bench.features)", short="features section", duration="4 min", datasets=(), irt=False,
               sections=("features",)),
     )
 }
