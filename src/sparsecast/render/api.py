@@ -26,7 +26,7 @@ from .options import (
     rect_bounds, shading_array,
 )
 
-__all__ = ["render", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "MAX_SAMPLES_PER_IMAGE",
+__all__ = ["render", "classification_tf", "same_emptiness", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "MAX_SAMPLES_PER_IMAGE",
            "DEFAULT_SHADING"]
 
 MAX_SAMPLES_PER_RAY = 1 << 22
@@ -195,7 +195,7 @@ def render(
     init = initial_rgba(initial, w, h)
 
     # The iso modes skip bricks by a TF that is non-empty around the isovalues.
-    classify = tf if mode == "dvr" else tf.with_spikes(mode_marker.values, keep_opacity=mode == "iso+dvr")
+    classify = classification_tf(tf, mode, mode_marker.values) if mode != "dvr" else tf
     build_ms = 0.0
     if isinstance(index, str):
         index = build_index(volume, classify, index, **index_options)
@@ -207,9 +207,13 @@ def render(
                 "this index is already built"
             )
         if mode != "dvr":
-            raise ParameterError(f"index: mode={mode!r} builds its index for its isovalues; pass an index name "
-                                 f"(e.g. index={index.name!r}), not a built index")
-        if index.volume is not volume or index.tf is not tf:
+            # A prebuilt index serves an iso mode when it skips exactly what the spiked TF
+            # does (the viewer keeps one per isovalue across camera and colour edits).
+            if index.volume is not volume or not same_emptiness(index.tf, classify):
+                raise ParameterError(
+                    f"index: mode={mode!r} needs an index built for its isovalues: pass an index name "
+                    f"(e.g. index={index.name!r}) or one built for classification_tf(tf, mode, iso)")
+        elif index.volume is not volume or index.tf is not tf:
             raise ParameterError(
                 f"index: this {index.name!r} index was built for another volume or transfer function; "
                 "build a new one with build_index(volume, tf, name)"
@@ -268,6 +272,38 @@ def render(
     if getattr(index, "auto", None) is not None:
         stats["auto"] = dict(index.auto)
     return Image(rgba, stats, samples)
+
+
+def classification_tf(tf: TransferFunction, mode: str, iso) -> TransferFunction:
+    """The TF an index is built for to render ``mode`` with isovalues ``iso``.
+
+    ``tf`` itself for ``"dvr"``; for the iso modes a TF on ``tf``'s table grid that is
+    non-empty around each isovalue (and, for ``"iso+dvr"``, wherever ``tf`` is), so
+    bricks whose range holds an isovalue are kept. In ``"iso"`` mode it depends only on
+    ``tf``'s value range and table size, not on its colours or opacity: an index built
+    for it serves every TF edit that keeps the range.
+
+    Parameters
+    ----------
+    tf : TransferFunction
+    mode : {"dvr", "iso", "iso+dvr"}
+    iso : float or sequence of float
+        Isovalues in data units (ignored for ``"dvr"``).
+    """
+    one_of(mode, "mode", RENDER_MODES)
+    if mode == "dvr":
+        return tf
+    return tf.with_spikes(np.atleast_1d(np.asarray(iso, np.float64)), keep_opacity=mode == "iso+dvr")
+
+
+def same_emptiness(a: TransferFunction, b: TransferFunction) -> bool:
+    """Whether an index built for ``a`` skips exactly what one built for ``b`` would:
+    trilinear TFs with the same range, table size and zero/non-zero opacity entries
+    (emptiness is decided by the prefix count of non-zero entries, nothing else)."""
+    if a is b:
+        return True
+    return (type(a) is type(b) is TransferFunction and a.value_range == b.value_range
+            and a.table_size == b.table_size and np.array_equal(a.prefix, b.prefix))
 
 
 def iso_mode(mode: str, iso, iso_colors, tf: TransferFunction) -> Dvr | Iso | IsoDvr:
