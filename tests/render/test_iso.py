@@ -132,13 +132,13 @@ def test_approximate_and_prebuilt_indices_refuse_iso():
 def test_an_index_built_for_the_spiked_tf_is_reused_in_iso_modes():
     from sparsecast.render import classification_tf
 
-    vol = _sphere(16, 4.0)
+    vol = _sphere()
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
     cam = sc.Camera.orbit(vol, 20, 10)
     for mode in ("iso", "iso+dvr"):
-        idx = sc.build_index(vol, classification_tf(tf, mode, [0.5]), "grid-pc")
+        idx = sc.build_index(vol, classification_tf(tf, mode, [0.5]), "grid-pc", cell=4)
         reused = sc.render(vol, tf, cam, 24, 24, index=idx, mode=mode, iso=0.5)
-        named = sc.render(vol, tf, cam, 24, 24, index="grid-pc", mode=mode, iso=0.5)
+        named = sc.render(vol, tf, cam, 24, 24, index="grid-pc", cell=4, mode=mode, iso=0.5)
         naive = sc.render(vol, tf, cam, 24, 24, index="naive", mode=mode, iso=0.5)
         np.testing.assert_allclose(reused.rgba, naive.rgba, atol=ATOL)
         assert reused.stats["build_ms"] == 0.0 and reused.stats["samples"] == named.stats["samples"]
