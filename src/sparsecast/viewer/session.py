@@ -223,8 +223,8 @@ class ViewerData:
         self.histogram_range = (float(lo), float(hi))
         if self.iso is None:
             self.iso = (0.5 * (self.histogram_range[0] + self.histogram_range[1]),)
-        if not 1 <= len(self.iso) <= MAX_ISOVALUES:
-            raise ParameterError(f"iso: expected 1 to {MAX_ISOVALUES} isovalues, got {len(self.iso)}")
+        if not 1 <= len(self.iso) <= MAX_ISOVALUES or not all(np.isfinite(self.iso)):
+            raise ParameterError(f"iso: expected 1 to {MAX_ISOVALUES} finite isovalues, got {self.iso!r}")
 
     @classmethod
     def create(cls, volume: Volume | VolumeSeries, tf: TransferFunction | str | None = None,
@@ -239,6 +239,8 @@ class ViewerData:
         if isinstance(volume, VolumeSeries):
             series, volume = volume, volume[volume.step(time)]
             kw["series"], kw["time"] = series, time
+        elif time != 0:
+            raise ParameterError(f"time: {volume.name} is one volume, not a time series; got time={time!r}")
         value_range = series.value_range if series is not None else volume.value_range
         if tf is None:
             tf = "viridis"
