@@ -145,7 +145,8 @@ class LabelTable:
         # Ids the TF leaves out get distinct colours of their own, so that showing one
         # in the table draws it in a colour told apart from its neighbours.
         colors = {i: tuple(float(x) for x in c) for i, c in TransferFunction.labels(list(ids)).labels.items()}
-        colors.update({i: tuple(float(x) for x in c) for i, c in tf.labels.items() if i in colors})
+        # (an id the TF hides with opacity 0 keeps its generated colour, so ticking it shows it)
+        colors.update({i: tuple(float(x) for x in c) for i, c in tf.labels.items() if i in colors and c[3] > 0})
         visible = tuple(i for i in tf.visible if i in colors)
         return cls(ids, tuple(int(c) for c in found[1]), colors, visible, tf)  # type: ignore[arg-type]
 
