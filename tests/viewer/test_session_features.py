@@ -99,6 +99,9 @@ def test_label_volume_hello_lists_ids_colours_and_counts(segmentation):
     assert colours[1] == [1.0, 0.0, 0.0, 1.0] and colours[2] == [0.0, 1.0, 0.0, 0.5]
     assert all(len(colours[i]) == 4 and colours[i][3] > 0 for i in (0, 5))  # ready to show when ticked
     assert h["modes"] == ["dvr"] and h["state"]["tf"] is None
+    # Generated colours: an id the TF leaves out is told apart from the ones it shows.
+    gen = ViewerData.create(segmentation, sc.TransferFunction.labels([1, 2, 5])).labels
+    assert gen.colors[0] not in [gen.colors[i] for i in (1, 2, 5)] and gen.visible == (1, 2, 5)
     assert ViewerData.create(sc.Volume(segmentation.data.astype(np.float32)), "viridis").hello()["labels"] is None
 
 

@@ -142,11 +142,14 @@ class LabelTable:
                 f"tf: a label TF needs a label volume (integer ids, at most 4096 distinct values); "
                 f"{volume.name} has values in [{lo:g}, {hi:g}]")
         ids = tuple(int(i) for i in found[0])
-        # Ids the TF leaves out get distinct colours of their own, so that showing one
-        # in the table draws it in a colour told apart from its neighbours.
-        colors = {i: tuple(float(x) for x in c) for i, c in TransferFunction.labels(list(ids)).labels.items()}
-        # (an id the TF hides with opacity 0 keeps its generated colour, so ticking it shows it)
-        colors.update({i: tuple(float(x) for x in c) for i, c in tf.labels.items() if i in colors and c[3] > 0})
+        # Ids the TF leaves out (or hides with opacity 0) get colours of their own, so that
+        # ticking one shows it: the palette entries after the ones a TF of generated
+        # colours (labels([ids])) took, so they differ from those.
+        own = {i: tuple(float(x) for x in c) for i, c in tf.labels.items() if i in set(ids) and c[3] > 0}
+        palette = list(TransferFunction.labels(list(range(len(ids) + len(own)))).labels.values())
+        missing = [i for i in ids if i not in own]
+        colors = {i: tuple(float(x) for x in palette[len(own) + k]) for k, i in enumerate(missing)}
+        colors.update(own)
         visible = tuple(i for i in tf.visible if i in colors)
         return cls(ids, tuple(int(c) for c in found[1]), colors, visible, tf)  # type: ignore[arg-type]
 
