@@ -439,8 +439,9 @@ class Session:
             self._indices.popitem(last=False)
         return idx, ms, True
 
-    def _camera(self, c: CameraSpec, volume: Volume) -> Camera:
-        return Camera.orbit(volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan,
+    def _camera(self, c: CameraSpec, volume: Volume | None = None) -> Camera:
+        # Every step of a series shares one grid, so any step frames the same camera.
+        return Camera.orbit(volume or self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan,
                             up=self.data.up, view=self.data.view)
 
     @staticmethod
