@@ -1,4 +1,6 @@
-"""Interactive viewer: a local web page that orbits a volume and edits its TF live.
+"""Interactive viewer: a local web page that orbits a volume and edits its TF live,
+with render mode and isovalue, clip box, a label table (label volumes) and a time
+slider (series).
 
 ``sparsecast view FILE`` (the CLI) or :func:`show` (Jupyter). The web stack
 (Starlette, uvicorn) is an optional dependency: ``pip install "sparsecast[view]"``.
