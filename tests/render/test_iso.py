@@ -166,3 +166,22 @@ def test_bih_build_modes_still_pass_through_render():
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
     img = sc.render(vol, tf, sc.Camera.orbit(vol), 8, 8, index="bih", mode="single-sample")
     assert img.stats["mode"] == "dvr" and img.stats["index"] == "bih"
+
+
+def test_the_first_iso_frame_after_dvr_warms_up_outside_the_timing():
+    """The driver compiles per mode: an iso frame with an index kind that DVR already
+    warmed must be warmed under its own key (jit_ms), not compiled inside stats["ms"]
+    (before, the viewer's first isosurface frame on bonsai took 10 s of "frame" time)."""
+    from sparsecast.kernels.iso import Iso
+    from sparsecast.kernels.march import Dvr
+    from sparsecast.render import api
+
+    vol = _sphere(16, 4.0)
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
+    cam = sc.Camera.orbit(vol)
+    sc.render(vol, tf, cam, 8, 8, index="grid-mm")
+    sc.render(vol, tf, cam, 8, 8, index="grid-mm", mode="iso", iso=0.5)
+    record = type(sc.build_index(vol, tf, "grid-mm").traversal_record(api._view(
+        np.asarray(cam.ray_params(8, 8), np.float64), vol.origin, 1.0 / vol.spacing)))
+    warmed = {k[-1] for k in api._WARM if k[0] is record and k[1] == vol.data.dtype.str}
+    assert {Dvr, Iso} <= warmed

@@ -418,7 +418,10 @@ def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
 
     Returns the milliseconds spent, 0 when this combination was already warm.
     """
-    key = (type(record), data.dtype.str, init.shape[0] > 0)
+    # The driver specialises on the record, the voxel dtype, the initial-RGBA path and the
+    # frame's sampler and mode markers (nearest labels, iso): each is its own compilation,
+    # so an iso frame after a DVR one with the same index must warm up too.
+    key = (type(record), data.dtype.str, init.shape[0] > 0, type(frame.sampler), type(frame.mode))
     if key in _WARM:
         return 0.0
     t0 = time.perf_counter()
