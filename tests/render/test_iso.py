@@ -129,6 +129,32 @@ def test_approximate_and_prebuilt_indices_refuse_iso():
         sc.render(vol, tf, sc.Camera.orbit(vol), 8, 8, index=bih, mode="iso", iso=0.5)
 
 
+def test_an_index_built_for_the_spiked_tf_is_reused_in_iso_modes():
+    from sparsecast.render import classification_tf
+
+    vol = _sphere()
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
+    cam = sc.Camera.orbit(vol, 20, 10)
+    for mode in ("iso", "iso+dvr"):
+        idx = sc.build_index(vol, classification_tf(tf, mode, [0.5]), "grid-pc", cell=4)
+        reused = sc.render(vol, tf, cam, 24, 24, index=idx, mode=mode, iso=0.5)
+        named = sc.render(vol, tf, cam, 24, 24, index="grid-pc", cell=4, mode=mode, iso=0.5)
+        naive = sc.render(vol, tf, cam, 24, 24, index="naive", mode=mode, iso=0.5)
+        np.testing.assert_allclose(reused.rgba, naive.rgba, atol=ATOL)
+        assert reused.stats["build_ms"] == 0.0 and reused.stats["samples"] == named.stats["samples"]
+        if mode == "iso":  # (iso+dvr keeps the TF's opacity: the sphere is non-empty throughout)
+            assert reused.stats["samples"] < naive.stats["samples"]
+    # In iso mode the classification ignores the TF's opacity: another preset reuses it.
+    other = sc.TransferFunction.preset("magma", (0.0, 1.0), threshold=0.7)
+    idx = sc.build_index(vol, classification_tf(tf, "iso", [0.5]), "grid-pc")
+    sc.render(vol, other, cam, 8, 8, index=idx, mode="iso", iso=0.5)
+    # An index for other isovalues, or for the DVR TF, would skip surfaces: refused.
+    for wrong in (sc.build_index(vol, classification_tf(tf, "iso", [0.3]), "grid-pc"),
+                  sc.build_index(vol, tf, "grid-pc")):
+        with pytest.raises(ParameterError, match="built for its isovalues"):
+            sc.render(vol, tf, cam, 8, 8, index=wrong, mode="iso", iso=0.5)
+
+
 def test_label_tfs_refuse_iso():
     vol = sc.Volume(np.zeros((6, 6, 6), np.uint8))
     with pytest.raises(ParameterError, match="label ids"):
@@ -140,3 +166,22 @@ def test_bih_build_modes_still_pass_through_render():
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
     img = sc.render(vol, tf, sc.Camera.orbit(vol), 8, 8, index="bih", mode="single-sample")
     assert img.stats["mode"] == "dvr" and img.stats["index"] == "bih"
+
+
+def test_the_first_iso_frame_after_dvr_warms_up_outside_the_timing():
+    """The driver compiles per mode: an iso frame with an index kind that DVR already
+    warmed must be warmed under its own key (jit_ms), not compiled inside stats["ms"]
+    (before, the viewer's first isosurface frame on bonsai took 10 s of "frame" time)."""
+    from sparsecast.kernels.iso import Iso
+    from sparsecast.kernels.march import Dvr
+    from sparsecast.render import api
+
+    vol = _sphere(16, 4.0)
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))
+    cam = sc.Camera.orbit(vol)
+    sc.render(vol, tf, cam, 8, 8, index="grid-mm")
+    sc.render(vol, tf, cam, 8, 8, index="grid-mm", mode="iso", iso=0.5)
+    record = type(sc.build_index(vol, tf, "grid-mm").traversal_record(api._view(
+        np.asarray(cam.ray_params(8, 8), np.float64), vol.origin, 1.0 / vol.spacing)))
+    warmed = {k[-1] for k in api._WARM if k[0] is record and k[1] == vol.data.dtype.str}
+    assert {Dvr, Iso} <= warmed

@@ -125,3 +125,97 @@ def test_page_renders_and_tf_drag_changes_frame(driver, server, tmp_path):
     print(f"screenshot: {shot}")
     errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
     assert not errors, errors
+
+
+def _series_volume():
+    """Four steps of a blob field, each step's blobs shifted: every step looks different."""
+    import numpy as np
+
+    base = sc.datasets.nbody_blobs(40, n_clusters=3, blobs_per_cluster=12, seed=5).data
+    return sc.VolumeSeries.from_array(np.stack([np.roll(base, 6 * t, axis=2) for t in range(4)]), name="rolling")
+
+
+@pytest.fixture(scope="module")
+def series_server():
+    srv = ViewerServer(ViewerData.create(_series_volume(), "viridis", index="grid-pc"), "127.0.0.1", 0).start()
+    yield srv
+    srv.stop()
+
+
+@pytest.fixture(scope="module")
+def label_server():
+    import numpy as np
+
+    seg = np.zeros((32, 32, 32), np.uint8)
+    seg[4:14, 4:14, 4:14], seg[12:26, 14:28, 10:24], seg[20:30, 2:12, 18:30] = 1, 2, 3
+    srv = ViewerServer(ViewerData.create(sc.Volume(seg), sc.TransferFunction.labels([1, 2, 3]), index="kdtree-deep"),
+                       "127.0.0.1", 0).start()
+    yield srv
+    srv.stop()
+
+
+def _click_slider(driver, el_id, fraction):
+    """Click a range input at ``fraction`` of its width: the value jumps there ('input' and 'change' fire)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    el = driver.find_element(By.ID, el_id)
+    w = el.size["width"]
+    ActionChains(driver).move_to_element_with_offset(el, int((fraction - 0.5) * (w - 16)), 0).click().perform()
+    return el
+
+
+def _changed_after(driver, what, act):
+    """Run ``act``; wait for a full frame of the new state; assert the picture changed."""
+    before = driver.execute_script(CANVAS)
+    frames = driver.execute_script(f"return {IDLE};")
+    act()
+    wait_for(driver, f"const f = {IDLE}; return f > {frames} ? f : 0;", 60, f"a full frame after {what}")
+    after = driver.execute_script(CANVAS)
+    assert after != before, f"{what} did not change the picture"
+    return driver.execute_script("return window.sparsecastViewer;")
+
+
+def test_isovalue_clip_and_time_sliders_change_the_frame(driver, series_server):
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    driver.get(series_server.url)
+    wait_for(driver, f"return {IDLE};", 90, "the first full frame")
+    assert not driver.find_element(By.ID, "time-box").get_attribute("hidden")
+    assert driver.find_element(By.ID, "labels-box").get_attribute("hidden")  # not a label volume
+
+    st = _changed_after(driver, "moving the time slider", lambda: _click_slider(driver, "time", 1.0))
+    assert st["time"] == 3 and st["lastStatus"]["time"] == 3
+
+    st = _changed_after(driver, "moving a clip slider", lambda: _click_slider(driver, "clip-x-hi", 0.5))
+    assert 0.3 < st["clip"]["box"][1][0] < 0.7 and st["lastStatus"]["samples"] > 0
+
+    st = _changed_after(driver, "switching to iso", lambda: Select(driver.find_element(By.ID, "mode")).select_by_value("iso"))
+    assert st["lastStatus"]["mode"] == "iso"
+    assert driver.find_element(By.ID, "iso").is_displayed()
+    iso0 = st["iso"][0]
+    st = _changed_after(driver, "moving the isovalue slider", lambda: _click_slider(driver, "iso", 0.15))
+    assert st["iso"][0] < iso0 and st["lastStatus"]["mode"] == "iso"
+    errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    assert not errors, errors
+
+
+def test_label_table_toggles_a_label(driver, label_server):
+    from selenium.webdriver.common.by import By
+
+    driver.get(label_server.url)
+    wait_for(driver, f"return {IDLE};", 90, "the first full frame")
+    assert driver.find_element(By.ID, "tf-box").get_attribute("hidden")  # no TF editor for labels
+    rows = driver.find_elements(By.CSS_SELECTOR, "#label-table tbody tr")
+    assert [r.find_elements(By.TAG_NAME, "td")[1].text for r in rows] == ["0", "1", "2", "3"]
+    assert rows[0].find_elements(By.TAG_NAME, "td")[3].text.replace(",", "").isdigit()
+    box2 = driver.find_element(By.CSS_SELECTOR, "#label-table input[data-id='2']")
+    assert box2.is_selected()
+    samples0 = driver.execute_script("return window.sparsecastViewer.lastStatus.samples;")
+    st = _changed_after(driver, "hiding label 2", box2.click)
+    assert st["lastStatus"]["samples"] < samples0  # its bricks are skipped now
+    st = _changed_after(driver, "hiding all labels", driver.find_element(By.ID, "labels-none").click)
+    assert st["lastStatus"]["samples"] == 0
+    errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    assert not errors, errors

@@ -58,3 +58,18 @@ def test_orbit_drag_moves_the_surface_with_the_mouse(dx, dy):
     assert (x1 - x0) * dx >= 0 and (dx == 0 or abs(x1 - x0) > 1e-3)
     assert (y1 - y0) * -dy >= 0 and (dy == 0 or abs(y1 - y0) > 1e-3)
     assert 0 <= ang["azimuth"] < 360 and -90 < ang["elevation"] < 90
+
+
+def test_sliders_map_onto_the_range_and_back():
+    n = js("ui.SLIDER_STEPS")
+    assert js(f"[0, {n // 2}, {n}, -5, {n + 9}].map((p) => ui.sliderValue(p, -2, 6))") == [-2, 2, 6, -2, 6]
+    assert js(f"[-2, 2, 6, -100, 100].map((v) => ui.sliderPos(v, -2, 6))") == [0, n // 2, n, 0, n]
+    assert js("ui.sliderPos(3, 1, 1)") == 0  # a constant volume: no range to slide over
+    v = js(f"ui.sliderValue(ui.sliderPos(0.3141, 0, 1), 0, 1)")
+    assert abs(v - 0.3141) <= 0.5 / n
+
+
+def test_clip_sliders_keep_lo_below_hi():
+    assert js("ui.clipPair(0.2, 0.7, 'lo')") == [0.2, 0.7]
+    assert js("ui.clipPair(0.8, 0.7, 'lo')") == [0.8, 0.8]  # lo pushed hi up
+    assert js("ui.clipPair(0.3, 0.1, 'hi')") == [0.1, 0.1]  # hi pushed lo down

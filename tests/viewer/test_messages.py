@@ -9,12 +9,16 @@ import pytest
 from sparsecast.errors import ParameterError
 from sparsecast.transfer import PRESETS
 from sparsecast.viewer.messages import (
+    MAX_CLIP_PLANES,
+    MAX_ISOVALUES,
     MAX_MESSAGE_BYTES,
     MAX_SIDE,
     MAX_TF_POINTS,
     PREVIEW_SIDE,
     CameraSpec,
+    ClipSpec,
     IndexSpec,
+    LabelSpec,
     MessageError,
     frame_size,
     parse_message,
@@ -174,3 +178,80 @@ def test_camera_pan_parses_and_is_checked():
     for bad in ([1.0], [0, 1, 2], "left", [100, 0], [True, 0], {"x": 1}):
         with pytest.raises(MessageError, match="pan"):
             parse(json.dumps({"type": "render", "camera": dict(cam, pan=bad)}))
+
+
+# -- mode / iso / clip / labels / time -------------------------------------------------
+LABEL_IDS = (0, 1, 2, 7)
+
+
+def parse_ctx(obj, labels=None, steps=0):
+    return parse_message(json.dumps(obj), indices=INDICES, presets=PRESETS, label_ids=labels, steps=steps)
+
+
+def test_mode_iso_clip_labels_time_parse():
+    req = parse_ctx({"type": "render", "mode": "iso+dvr", "iso": [0.25, -3],
+                     "clip": {"box": [[0, 0.1, 0.2], [1, 0.5, 0.2]], "planes": [[0.5, 0.5, 0.5, 1, 0, -2]]},
+                     "time": 4}, steps=5)
+    assert req.mode == "iso+dvr" and req.iso == (0.25, -3.0) and req.time == 4
+    assert req.clip == ClipSpec(((0.0, 0.1, 0.2), (1.0, 0.5, 0.2)), ((0.5, 0.5, 0.5, 1.0, 0.0, -2.0),))
+    assert not req.clip.is_full and parse({"type": "render", "clip": {}}).clip.is_full
+    assert parse({"type": "render", "iso": 12.5}).iso == (12.5,)  # a number is one isovalue
+    req = parse_ctx({"type": "render", "labels": {"visible": [7, 1, 1], "colors": [[2, 1, 0, 0, 0.5]]}},
+                    labels=LABEL_IDS)
+    assert req.labels == LabelSpec((1, 7), ((2, 1.0, 0.0, 0.0, 0.5),))
+    assert parse_ctx({"type": "render", "labels": {"visible": []}}, labels=LABEL_IDS).labels.visible == ()
+    assert parse_ctx({"type": "render", "labels": {}}, labels=LABEL_IDS).labels == LabelSpec(None, ())
+    req = parse({"type": "render"})
+    assert (req.mode, req.iso, req.clip, req.labels, req.time) == (None, None, None, None, None)
+
+
+BAD_NEW = [
+    # (message, label ids or None, steps, words the error must contain)
+    ({"mode": "mip"}, None, 0, "mode"),
+    ({"mode": 1}, None, 0, "mode"),
+    ({"mode": "iso"}, LABEL_IDS, 0, "label volume"),
+    ({"iso": []}, None, 0, "iso"),
+    ({"iso": list(range(MAX_ISOVALUES + 1))}, None, 0, "iso"),
+    ({"iso": "0.5"}, None, 0, "iso[0]"),
+    ({"iso": [0.5, None]}, None, 0, "iso[1]"),
+    ({"iso": [1e301]}, None, 0, "iso[0]"),
+    ('{"type": "render", "iso": [NaN]}', None, 0, "NaN"),
+    ({"iso": True}, None, 0, "iso[0]"),
+    ({"clip": [0, 1]}, None, 0, "clip"),
+    ({"clip": {"box": [[0, 0, 0], [1, 1]]}}, None, 0, "clip.box"),
+    ({"clip": {"box": [[0, 0, 0], [1, 1, 1.5]]}}, None, 0, "clip.box[1][2]"),
+    ({"clip": {"box": [[0, -0.1, 0], [1, 1, 1]]}}, None, 0, "clip.box[0][1]"),
+    ({"clip": {"box": [[0.6, 0, 0], [0.4, 1, 1]]}}, None, 0, "x0 <= x1"),
+    ({"clip": {"box": [[0, 0, "0"], [1, 1, 1]]}}, None, 0, "clip.box[0][2]"),
+    ({"clip": {"planes": [[0.5, 0.5, 0.5, 0, 0, 0]]}}, None, 0, "non-zero normal"),
+    ({"clip": {"planes": [[0.5, 0.5, 0.5, 1, 0]]}}, None, 0, "clip.planes[0]"),
+    ({"clip": {"planes": [[2, 0.5, 0.5, 1, 0, 0]]}}, None, 0, "clip.planes[0][0]"),
+    ({"clip": {"planes": [[0.5, 0.5, 0.5, 1, 0, 0]] * (MAX_CLIP_PLANES + 1)}}, None, 0, "clip.planes"),
+    ({"clip": {"planes": "x"}}, None, 0, "clip.planes"),
+    ({"clip": {"sphere": 1}}, None, 0, "unknown key"),
+    ({"labels": {"visible": [1]}}, None, 0, "not show a label volume"),
+    ({"labels": {"visible": [3]}}, LABEL_IDS, 0, "id 3 does not occur"),
+    ({"labels": {"visible": ["1"]}}, LABEL_IDS, 0, "labels.visible[0]"),
+    ({"labels": {"visible": 1}}, LABEL_IDS, 0, "labels.visible"),
+    ({"labels": {"visible": [1.5]}}, LABEL_IDS, 0, "labels.visible[0]"),
+    ({"labels": {"visible": [0] * 5}}, LABEL_IDS, 0, "labels.visible"),
+    ({"labels": {"colors": [[1, 1, 0, 0]]}}, LABEL_IDS, 0, "labels.colors[0]"),
+    ({"labels": {"colors": [[1, 1, 0, 0, 2]]}}, LABEL_IDS, 0, "labels.colors[0][4]"),
+    ({"labels": {"colors": [[9, 1, 0, 0, 1]]}}, LABEL_IDS, 0, "id 9"),
+    ({"labels": {"hidden": [1]}}, LABEL_IDS, 0, "unknown key"),
+    ({"tf": GOOD_TF}, LABEL_IDS, 0, "label volume"),
+    ({"time": 0}, None, 0, "not a time series"),
+    ({"time": 5}, None, 5, "time"),
+    ({"time": -1}, None, 5, "time"),
+    ({"time": 1.5}, None, 5, "time"),
+    ({"time": "2"}, None, 5, "time"),
+]
+
+
+@pytest.mark.parametrize("msg, labels, steps, words", BAD_NEW, ids=[f"badnew{i}" for i in range(len(BAD_NEW))])
+def test_bad_new_fields_rejected_with_named_field(msg, labels, steps, words):
+    raw = msg if isinstance(msg, str) else json.dumps({"type": "render", **msg})
+    with pytest.raises(MessageError) as info:
+        parse_message(raw, indices=INDICES, presets=PRESETS, label_ids=labels, steps=steps)
+    assert words in str(info.value)
+    assert len(str(info.value)) < 400

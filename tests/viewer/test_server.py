@@ -350,3 +350,71 @@ def test_auto_index_cheap_while_the_tf_is_dragged(data):
     # an orbit preview with the settled TF keeps the fast index
     _, st = s.render_frame(s.update(RenderRequest(seq=4, preview=True)))
     assert st["index"] == SPARSE_INDEX and not st["auto"]["editing"]
+
+
+def _run_view(monkeypatch, capsys, *args):
+    """``sparsecast view ARGS`` with the server's loop replaced; the ViewerData it served."""
+    from sparsecast.cli import main
+    from sparsecast.viewer import server as server_mod
+
+    seen = {}
+
+    def fake_serve(self):
+        seen["data"] = self.app.state.viewer
+        self.sock.close()
+
+    monkeypatch.setattr(server_mod.ViewerServer, "serve_forever", fake_serve)
+    monkeypatch.setattr(sys, "argv", ["sparsecast", "view", *map(str, args), "--port", "0", "--no-browser"])
+    try:
+        main()
+    except SystemExit as exc:
+        assert not exc.code, capsys.readouterr().err
+    return seen["data"], capsys.readouterr().out
+
+
+def test_cli_view_series_labels_and_iso(monkeypatch, capsys, tmp_path):
+    steps = np.zeros((3, 12, 12, 12), np.float32)
+    steps[:, 3:9, 3:9, 3:9] = np.arange(1, 4)[:, None, None, None]
+    np.save(tmp_path / "run.npy", steps)
+    data, out = _run_view(monkeypatch, capsys, tmp_path / "run.npy", "--time", "2", "--tf", "magma")
+    assert data.series is not None and data.time == 2 and data.tf.value_range == (0.0, 3.0)
+    assert data.hello()["series"]["steps"] == 3 and "3 steps" in out
+    seg = np.zeros((10, 10, 10), np.uint8)
+    seg[2:5, 2:5, 2:5], seg[5:8, 5:8, 5:8] = 3, 4
+    np.save(tmp_path / "seg.npy", seg)
+    data, out = _run_view(monkeypatch, capsys, tmp_path / "seg.npy", "--tf", "labels")
+    assert data.labels.ids == (0, 3, 4) and data.labels.visible == (3, 4) and data.tf is None
+    assert "3 label ids" in out
+    data, _ = _run_view(monkeypatch, capsys, tmp_path / "run.npy", "--time", "0", "--mode", "iso", "--iso", "1.5")
+    assert data.mode == "iso" and data.iso == (1.5,)
+
+
+def test_cli_view_bad_mode_and_time_are_one_line(monkeypatch, capsys, tmp_path):
+    from sparsecast.cli import main
+
+    np.save(tmp_path / "v.npy", np.zeros((8, 8, 8), np.float32))
+    for args, word in ([("--mode", "mip"), "--mode"], [("--iso", "0.5"), "--iso"], [("--time", "7"), "time"]):
+        monkeypatch.setattr(sys, "argv", ["sparsecast", "view", str(tmp_path / "v.npy"), "--no-browser", *args])
+        with pytest.raises(SystemExit) as info:
+            main()
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert word in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_websocket_labels_and_time_round_trip():
+    seg = np.zeros((16, 16, 16), np.uint8)
+    seg[2:8, 2:8, 2:8], seg[8:14, 8:14, 8:14] = 1, 2
+    data = ViewerData.create(sc.Volume(seg), sc.TransferFunction.labels([1, 2]))
+    with TestClient(create_app(data, allowed_hosts=HOSTS)) as c, c.websocket_connect("/ws") as ws:
+        hello = ws.receive_json()
+        assert hello["labels"]["ids"] == [0, 1, 2] and hello["labels"]["counts"] == [16**3 - 2 * 216, 216, 216]
+        ws.send_text(render_msg(1, width=32, height=32, format="png"))
+        _, both = recv_frame(ws)
+        ws.send_text(render_msg(2, labels={"visible": [1]}))
+        _, one = recv_frame(ws)
+        assert np.abs(both.astype(int) - one).max() > 20
+        ws.send_text(render_msg(3, labels={"visible": [9]}))
+        assert "id 9" in recv_error(ws)["message"]
+        ws.send_text(render_msg(4, time=1))
+        assert "not a time series" in recv_error(ws)["message"]

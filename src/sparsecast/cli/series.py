@@ -18,7 +18,23 @@ from .app import err, out, warn
 from .inputs import make_tf, orbit_angles, orbit_frame
 from .parse import parse_dims, parse_spacing
 
-__all__ = ["render_series", "frame_paths"]
+__all__ = ["render_series", "frame_paths", "open_series"]
+
+
+def open_series(file: Path, load_kw: dict[str, Any]):
+    """The series ``file`` names (a folder, a glob or a 4-D .npy) with the raw-file and
+    grid options of ``load_kw`` (``dims``, ``dtype``, ``spacing``, ``orientation``)."""
+    from ..io import load_series
+
+    kw = {}
+    if load_kw.get("dims"):
+        kw["dims"] = parse_dims(load_kw["dims"])
+    if load_kw.get("dtype"):
+        kw["dtype"] = load_kw["dtype"]
+    if load_kw.get("orientation"):
+        kw["orientation"] = load_kw["orientation"]
+    spacing = parse_spacing(load_kw["spacing"]) if load_kw.get("spacing") else None
+    return load_series(str(file), spacing=spacing, **kw)
 
 
 def frame_paths(pattern: Path, n: int, option: str, suffixes) -> list[Path]:
@@ -42,18 +58,9 @@ def render_series(file: Path, time_step: Optional[int], output: Path, array: Opt
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from ..camera import Camera
-    from ..io import load_series
     from ..render import render as do_render
 
-    kw = {}
-    if load_kw.get("dims"):
-        kw["dims"] = parse_dims(load_kw["dims"])
-    if load_kw.get("dtype"):
-        kw["dtype"] = load_kw["dtype"]
-    if load_kw.get("orientation"):
-        kw["orientation"] = load_kw["orientation"]
-    spacing = parse_spacing(load_kw["spacing"]) if load_kw.get("spacing") else None
-    series = load_series(str(file), spacing=spacing, **kw)
+    series = open_series(file, load_kw)
     steps = [series.step(time_step)] if time_step is not None else list(range(len(series)))
     if time_step is None:
         images = frame_paths(output, len(series), "-o", IMAGE_SUFFIXES)

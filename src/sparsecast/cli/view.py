@@ -7,6 +7,7 @@ from typing import Annotated, Optional
 import typer
 
 from .._util.checks import as_int
+from ..errors import ParameterError
 from .app import (
     CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt,
     app, err, out, warn,
@@ -30,27 +31,53 @@ def view(
     port: Annotated[int, typer.Option(help="TCP port (0 picks a free one).")] = 8765,
     allow_remote: Annotated[bool, typer.Option("--allow-remote", help="Allow a non-loopback --host (no authentication!).")] = False,
     no_browser: Annotated[bool, typer.Option("--no-browser", help="Do not open a web browser.")] = False,
+    mode: Annotated[str, typer.Option(help="Initial render mode: dvr, iso or iso+dvr (the page switches).")] = "dvr",
+    iso: Annotated[Optional[list[float]], typer.Option(
+        help="Initial isovalue in data units (repeat for up to 8; default: the middle of the range).")] = None,
+    time_step: Annotated[Optional[int], typer.Option("--time", help=(
+        "FILE is a time series (a folder of volume files, a quoted glob or a 4-D .npy): start at this step; "
+        "the page has a time slider and the TF spans the range of every step."))] = None,
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
     orientation: OrientationOpt = None,
 ) -> None:
-    """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices."""
+    """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices and
+    render modes (isovalue slider), clip, show or hide labels (--tf labels), step through
+    a time series (--time)."""
     from ..viewer import require_web_stack
 
     require_web_stack()
+    from ..transfer import LabelTransferFunction
+    from ..viewer.messages import MODES, CameraSpec
     from ..viewer.server import ViewerServer, check_host
-    from ..viewer.messages import CameraSpec
     from ..viewer.session import ViewerData, spec_from_preset
 
     remote = check_host(host, allow_remote)
     as_int(port, "--port", 0, 65535, expected="0..65535 (0 picks a free port)")
-    vol = load_input(file, dims, dtype, spacing, orientation=orientation)
+    if mode not in MODES:
+        raise ParameterError(f"--mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    if iso and mode == "dvr":
+        raise ParameterError("--iso: isovalues apply with --mode iso or iso+dvr; got --mode dvr")
+    series = None
+    if time_step is not None:
+        if file is None:
+            raise ParameterError("--time: give the series as FILE (a folder, a quoted glob or a 4-D .npy)")
+        from .series import open_series
+
+        series = open_series(file, dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
+        vol = series[series.step(time_step)]
+    else:
+        vol = load_input(file, dims, dtype, spacing, orientation=orientation)
     frame = orbit_frame(vol, file, up, view)
-    tfn = make_tf(tf, vol, tf_range, threshold)
+    # A series: one TF over the range of every step unless --tf-range fixes it.
+    tfn = make_tf(tf, vol, tf_range, threshold,
+                  default_range=series.value_range if series is not None and not tf_range else None)
     az, el = orbit_angles(frame, None, None)
-    data = ViewerData.create(vol, tfn, index=index, cell=cell, camera=CameraSpec(az, el), **frame)
-    if not tf.lower().endswith(".json"):
+    extra = {} if not iso else {"iso": tuple(iso)}
+    data = ViewerData.create(vol if series is None else series, tfn, index=index, cell=cell,
+                             time=time_step or 0, camera=CameraSpec(az, el), mode=mode, **extra, **frame)
+    if not tf.lower().endswith(".json") and not isinstance(tfn, LabelTransferFunction):
         # Editable form of a preset: its colour map plus a few opacity points.
         data.tf = spec_from_preset(tf, tfn.value_range, threshold)
     server = ViewerServer(data, host, port, allow_remote=allow_remote)
@@ -58,7 +85,12 @@ def view(
         data.warm_up()
     if remote:
         warn(f"serving on {host}, reachable from other machines; the viewer has no authentication")
-    out.print(f"sparsecast viewer: {server.url}  ({vol.name} {'x'.join(map(str, vol.dims))}; Ctrl-C stops)")
+    what = f"{vol.name} {'x'.join(map(str, vol.dims))}"
+    if series is not None:
+        what = f"{series.name}: {len(series)} steps of {'x'.join(map(str, vol.dims))}"
+    elif data.labels is not None:
+        what += f", {len(data.labels.ids)} label ids"
+    out.print(f"sparsecast viewer: {server.url}  ({what}; Ctrl-C stops)")
     if not no_browser:
         import threading
         import webbrowser

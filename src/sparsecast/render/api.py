@@ -26,7 +26,7 @@ from .options import (
     rect_bounds, shading_array,
 )
 
-__all__ = ["render", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "MAX_SAMPLES_PER_IMAGE",
+__all__ = ["render", "classification_tf", "same_emptiness", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "MAX_SAMPLES_PER_IMAGE",
            "DEFAULT_SHADING"]
 
 MAX_SAMPLES_PER_RAY = 1 << 22
@@ -196,7 +196,7 @@ def render(
     init = initial_rgba(initial, w, h)
 
     # The iso modes skip bricks by a TF that is non-empty around the isovalues.
-    classify = tf if mode == "dvr" else tf.with_spikes(mode_marker.values, keep_opacity=mode == "iso+dvr")
+    classify = classification_tf(tf, mode, mode_marker.values) if mode != "dvr" else tf
     build_ms = 0.0
     build_jit_ms = 0.0
     if isinstance(index, str):
@@ -210,9 +210,13 @@ def render(
                 "this index is already built"
             )
         if mode != "dvr":
-            raise ParameterError(f"index: mode={mode!r} builds its index for its isovalues; pass an index name "
-                                 f"(e.g. index={index.name!r}), not a built index")
-        if index.volume is not volume or index.tf is not tf:
+            # A prebuilt index serves an iso mode when it skips exactly what the spiked TF
+            # does (the viewer keeps one per isovalue across camera and colour edits).
+            if index.volume is not volume or not same_emptiness(index.tf, classify):
+                raise ParameterError(
+                    f"index: mode={mode!r} needs an index built for its isovalues: pass an index name "
+                    f"(e.g. index={index.name!r}) or one built for classification_tf(tf, mode, iso)")
+        elif index.volume is not volume or index.tf is not tf:
             raise ParameterError(
                 f"index: this {index.name!r} index was built for another volume or transfer function; "
                 "build a new one with build_index(volume, tf, name)"
@@ -271,6 +275,38 @@ def render(
     if getattr(index, "auto", None) is not None:
         stats["auto"] = dict(index.auto)
     return Image(rgba, stats, samples)
+
+
+def classification_tf(tf: TransferFunction, mode: str, iso) -> TransferFunction:
+    """The TF an index is built for to render ``mode`` with isovalues ``iso``.
+
+    ``tf`` itself for ``"dvr"``; for the iso modes a TF on ``tf``'s table grid that is
+    non-empty around each isovalue (and, for ``"iso+dvr"``, wherever ``tf`` is), so
+    bricks whose range holds an isovalue are kept. In ``"iso"`` mode it depends only on
+    ``tf``'s value range and table size, not on its colours or opacity: an index built
+    for it serves every TF edit that keeps the range.
+
+    Parameters
+    ----------
+    tf : TransferFunction
+    mode : {"dvr", "iso", "iso+dvr"}
+    iso : float or sequence of float
+        Isovalues in data units (ignored for ``"dvr"``).
+    """
+    one_of(mode, "mode", RENDER_MODES)
+    if mode == "dvr":
+        return tf
+    return tf.with_spikes(np.atleast_1d(np.asarray(iso, np.float64)), keep_opacity=mode == "iso+dvr")
+
+
+def same_emptiness(a: TransferFunction, b: TransferFunction) -> bool:
+    """Whether an index built for ``a`` skips exactly what one built for ``b`` would:
+    trilinear TFs with the same range, table size and zero/non-zero opacity entries
+    (emptiness is decided by the prefix count of non-zero entries, nothing else)."""
+    if a is b:
+        return True
+    return (type(a) is type(b) is TransferFunction and a.value_range == b.value_range
+            and a.table_size == b.table_size and np.array_equal(a.prefix, b.prefix))
 
 
 def iso_mode(mode: str, iso, iso_colors, tf: TransferFunction) -> Dvr | Iso | IsoDvr:
@@ -385,7 +421,10 @@ def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
 
     Returns the milliseconds spent, 0 when this combination was already warm.
     """
-    key = (type(record), data.dtype.str, init.shape[0] > 0)
+    # The driver specialises on the record, the voxel dtype, the initial-RGBA path and the
+    # frame's sampler and mode markers (nearest labels, iso): each is its own compilation,
+    # so an iso frame after a DVR one with the same index must warm up too.
+    key = (type(record), data.dtype.str, init.shape[0] > 0, type(frame.sampler), type(frame.mode))
     if key in _WARM:
         return 0.0
     t0 = time.perf_counter()

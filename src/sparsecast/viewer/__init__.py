@@ -1,4 +1,6 @@
-"""Interactive viewer: a local web page that orbits a volume and edits its TF live.
+"""Interactive viewer: a local web page that orbits a volume and edits its TF live,
+with render mode and isovalue, clip box, a label table (label volumes) and a time
+slider (series).
 
 ``sparsecast view FILE`` (the CLI) or :func:`show` (Jupyter). The web stack
 (Starlette, uvicorn) is an optional dependency: ``pip install "sparsecast[view]"``.
@@ -56,18 +58,32 @@ class ViewerHandle:
         return f"<sparsecast viewer at {self.url}>"
 
 
-def show(volume, tf=None, *, index: str | None = None, cell: int | None = None, port: int = 0,
-         width: int = 1000, height: int = 680) -> ViewerHandle:
+def show(volume, tf=None, *, index: str | None = None, cell: int | None = None, time: int = 0,
+         mode: str = "dvr", iso=None, port: int = 0, width: int = 1000, height: int = 740) -> ViewerHandle:
     """Start a viewer for ``volume`` on 127.0.0.1 in a background thread and return a
     handle that Jupyter displays as an inline frame.
 
+    The page has the controls of ``sparsecast view``: TF editor, index, render mode
+    with an isovalue slider, clip box sliders, a label table for a label volume and a
+    time slider for a series.
+
     Parameters
     ----------
-    volume : Volume or ndarray
-    tf : TransferFunction or preset name, optional
-        Initial TF (default: the ``viridis`` preset over the volume's range).
+    volume : Volume, VolumeSeries or ndarray
+        A 3-D array ``(nz, ny, nx)`` is one volume; a 4-D array ``(t, nz, ny, nx)`` or a
+        :class:`~sparsecast.series.VolumeSeries` is a time series (a time slider).
+    tf : TransferFunction, LabelTransferFunction or preset name, optional
+        Initial TF (default: the ``viridis`` preset over the value range, of every step
+        for a series). A label TF shows the volume as a label volume: a table of its
+        ids (visibility, colour, voxel count).
     index, cell : optional
-        Initial index (default ``grid-pc``) and grid cell size.
+        Initial index (default ``auto``) and grid cell size.
+    time : int
+        Initial step of a series.
+    mode : {"dvr", "iso", "iso+dvr"}
+        Initial render mode.
+    iso : float or sequence of float, optional
+        Initial isovalues in data units (default: the middle of the value range).
     port : int
         0 picks a free port.
     width, height : int
@@ -75,6 +91,7 @@ def show(volume, tf=None, *, index: str | None = None, cell: int | None = None, 
     """
     import numpy as np
 
+    from ..series import VolumeSeries
     from ..volume import Volume
 
     require_web_stack()
@@ -82,8 +99,9 @@ def show(volume, tf=None, *, index: str | None = None, cell: int | None = None, 
     from .session import ViewerData
 
     if isinstance(volume, np.ndarray):
-        volume = Volume(volume)
-    data = ViewerData.create(volume, tf, index=index, cell=cell)
+        volume = VolumeSeries.from_array(volume) if volume.ndim == 4 else Volume(volume)
+    kw = {} if iso is None else {"iso": tuple(float(v) for v in np.atleast_1d(iso))}
+    data = ViewerData.create(volume, tf, index=index, cell=cell, time=time, mode=mode, **kw)
     server = ViewerServer(data, "127.0.0.1", port).start()
     _SERVERS.append(server)
     return ViewerHandle(server, width, height)

@@ -17,9 +17,22 @@ Client -> server (one message type; every section optional)::
      "index": {"name": "grid-pc", "cell": 8 | null},
      "width": 512, "height": 512,                 # canvas size, each 16..1024
      "preview": false,                            # true: capped to 256 x 256 (dragging)
-     "format": "jpeg" | "png"}
+     "format": "jpeg" | "png",
+     "mode": "dvr" | "iso" | "iso+dvr",
+     "iso": [v, ...],                             # 1..8 isovalues in data units (a number is one)
+     "clip": {"box": [[x0, y0, z0], [x1, y1, z1]],    # fractions [0, 1] of the volume box, lo <= hi
+              "planes": [[px, py, pz, nx, ny, nz], ...]},  # point: fractions; normal: world axes
+     "labels": {"visible": [id, ...],             # label volumes: the ids shown (others hidden)
+                "colors": [[id, r, g, b, a], ...]},  # per-id colour overrides, in [0, 1]
+     "time": 3}                                   # time series: the step shown
 
 The sections update the session's state; a render of the new state is requested.
+Isovalues are in data units (what ``render(iso=...)`` takes, so a value means the same
+whatever TF range the client edits). ``clip`` replaces the whole clip state (``{}``: no
+clipping); ``labels`` replaces the visible set when ``visible`` is given and recolours
+the ids in ``colors``. ``labels`` and ``time`` are accepted only when the viewer shows a
+label volume or a series (``label_ids`` / ``steps`` of :func:`parse_message`); a label
+volume renders ``dvr`` only.
 """
 
 from __future__ import annotations
@@ -36,6 +49,8 @@ __all__ = [
     "CameraSpec",
     "TFSpec",
     "IndexSpec",
+    "ClipSpec",
+    "LabelSpec",
     "RenderRequest",
     "parse_message",
     "MAX_MESSAGE_BYTES",
@@ -45,6 +60,10 @@ __all__ = [
     "PREVIEW_SIDE",
     "FULL_SIDE",
     "CELL_SIZES",
+    "MODES",
+    "MAX_ISOVALUES",
+    "MAX_CLIP_PLANES",
+    "FULL_CLIP",
 ]
 
 #: Largest accepted message (UTF-8 bytes).
@@ -65,8 +84,17 @@ ZOOM_RANGE = (0.05, 50.0)
 #: Value ranges: finite and below this magnitude.
 MAX_ABS_VALUE = 1e300
 _MAX_NAME = 64
+#: Render modes (``render(mode=...)``), isovalues and clip planes per message.
+MODES = ("dvr", "iso", "iso+dvr")
+MAX_ISOVALUES = 8
+MAX_CLIP_PLANES = 6
+#: Largest normal component (normals are directions; any non-zero length will do).
+MAX_ABS_NORMAL = 1e6
 
-_TOP_KEYS = {"type", "seq", "camera", "tf", "index", "width", "height", "preview", "format"}
+_TOP_KEYS = {"type", "seq", "camera", "tf", "index", "width", "height", "preview", "format",
+             "mode", "iso", "clip", "labels", "time"}
+_CLIP_KEYS = {"box", "planes"}
+_LABEL_KEYS = {"visible", "colors"}
 _CAMERA_KEYS = {"azimuth", "elevation", "zoom", "pan"}
 _CAMERA_REQUIRED = ("azimuth", "elevation", "zoom")
 PAN_LIMIT = 5.0  # bounding-sphere radii
@@ -103,6 +131,36 @@ class IndexSpec:
 
 
 @dataclass(frozen=True)
+class ClipSpec:
+    """Clip box and planes in fractions of the volume's box (hashable).
+
+    ``box`` is ``((x0, y0, z0), (x1, y1, z1))`` with ``0 <= lo <= hi <= 1`` per axis;
+    each plane is ``(px, py, pz, nx, ny, nz)``: a point in box fractions and a
+    non-zero normal along the world axes (the side it points to is kept).
+    """
+
+    box: tuple[tuple[float, float, float], tuple[float, float, float]] = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    planes: tuple[tuple[float, float, float, float, float, float], ...] = ()
+
+    @property
+    def is_full(self) -> bool:
+        """Whether this clips nothing (the whole box, no plane)."""
+        return self.box == FULL_CLIP.box and not self.planes
+
+
+FULL_CLIP = ClipSpec()
+
+
+@dataclass(frozen=True)
+class LabelSpec:
+    """A label-table edit: ``visible`` ids (``None``: unchanged) and colour overrides
+    ``(id, r, g, b, a)``."""
+
+    visible: tuple[int, ...] | None = None
+    colors: tuple[tuple[int, float, float, float, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class RenderRequest:
     """One validated client message; ``None`` sections leave the state unchanged."""
 
@@ -114,6 +172,11 @@ class RenderRequest:
     height: int | None = None
     preview: bool = False
     format: str = "jpeg"
+    mode: str | None = None
+    iso: tuple[float, ...] | None = None
+    clip: ClipSpec | None = None
+    labels: LabelSpec | None = None
+    time: int | None = None
 
 
 def _fail(msg: str) -> MessageError:
@@ -227,8 +290,94 @@ def parse_index(value: Any, indices: Iterable[str]) -> IndexSpec:
     return IndexSpec(name, cell)
 
 
-def parse_message(raw: str | bytes | None, *, indices: Iterable[str], presets: Iterable[str]) -> RenderRequest:
-    """Validate one client message; raise :class:`MessageError` when it is not acceptable."""
+def _list(value: Any, name: str, lo: int, hi: int, what: str) -> list:
+    if not isinstance(value, list):
+        raise _fail(f"{name}: expected a list of {what}, got {type(value).__name__}")
+    if not lo <= len(value) <= hi:
+        raise _fail(f"{name}: expected {lo}..{hi} {what}, got {len(value)}")
+    return value
+
+
+def parse_iso(value: Any) -> tuple[float, ...]:
+    """Isovalues in data units: a number or a list of 1..:data:`MAX_ISOVALUES` numbers."""
+    values = value if isinstance(value, list) else [value]
+    _list(values, "iso", 1, MAX_ISOVALUES, "isovalues")
+    return tuple(_number(v, f"iso[{i}]", -MAX_ABS_VALUE, MAX_ABS_VALUE) for i, v in enumerate(values))
+
+
+def parse_clip(value: Any) -> ClipSpec:
+    d = _object(value, "clip", _CLIP_KEYS)
+    box = FULL_CLIP.box
+    if "box" in d:
+        b = d["box"]
+        if not (isinstance(b, list) and len(b) == 2 and all(isinstance(c, list) and len(c) == 3 for c in b)):
+            raise _fail("clip.box: expected [[x0, y0, z0], [x1, y1, z1]] (fractions of the volume box)")
+        lo, hi = (tuple(_number(v, f"clip.box[{c}][{j}]", 0.0, 1.0) for j, v in enumerate(b[c])) for c in (0, 1))
+        for j, axis in enumerate("xyz"):
+            if lo[j] > hi[j]:
+                raise _fail(f"clip.box: expected {axis}0 <= {axis}1, got {lo[j]:g} > {hi[j]:g}")
+        box = (lo, hi)
+    planes = []
+    for i, p in enumerate(_list(d.get("planes", []), "clip.planes", 0, MAX_CLIP_PLANES, "planes")):
+        if not isinstance(p, list) or len(p) != 6:
+            raise _fail(f"clip.planes[{i}]: expected [px, py, pz, nx, ny, nz]")
+        point = [_number(v, f"clip.planes[{i}][{j}]", 0.0, 1.0) for j, v in enumerate(p[:3])]
+        normal = [_number(v, f"clip.planes[{i}][{j + 3}]", -MAX_ABS_NORMAL, MAX_ABS_NORMAL)
+                  for j, v in enumerate(p[3:])]
+        if not any(normal):
+            raise _fail(f"clip.planes[{i}]: expected a non-zero normal, got [0, 0, 0]")
+        planes.append((*point, *normal))
+    return ClipSpec(box, tuple(planes))  # type: ignore[arg-type]
+
+
+def _label_id(value: Any, name: str, known: frozenset[int]) -> int:
+    i = _integer(value, name, -(2**53), 2**53)
+    if i not in known:
+        raise _fail(f"{name}: id {i} does not occur in the label volume ({len(known)} ids)")
+    return i
+
+
+def parse_labels(value: Any, label_ids: Iterable[int] | None) -> LabelSpec:
+    if label_ids is None:
+        raise _fail("labels: this viewer does not show a label volume (start it with a label TF, "
+                    "e.g. sparsecast view FILE --tf labels)")
+    known = frozenset(int(i) for i in label_ids)
+    d = _object(value, "labels", _LABEL_KEYS)
+    visible = None
+    if "visible" in d:
+        ids = _list(d["visible"], "labels.visible", 0, len(known), "label ids")
+        visible = tuple(sorted({_label_id(v, f"labels.visible[{i}]", known) for i, v in enumerate(ids)}))
+    colors = []
+    for i, c in enumerate(_list(d.get("colors", []), "labels.colors", 0, len(known), "colours")):
+        if not isinstance(c, list) or len(c) != 5:
+            raise _fail(f"labels.colors[{i}]: expected [id, r, g, b, a]")
+        colors.append((_label_id(c[0], f"labels.colors[{i}][0]", known),
+                       *(_number(v, f"labels.colors[{i}][{j + 1}]", 0.0, 1.0) for j, v in enumerate(c[1:]))))
+    return LabelSpec(visible, tuple(colors))  # type: ignore[arg-type]
+
+
+def parse_time(value: Any, steps: int) -> int:
+    if steps <= 0:
+        raise _fail("time: this viewer shows one volume, not a time series")
+    return _integer(value, "time", 0, steps - 1)
+
+
+def parse_message(raw: str | bytes | None, *, indices: Iterable[str], presets: Iterable[str],
+                  label_ids: Iterable[int] | None = None, steps: int = 0) -> RenderRequest:
+    """Validate one client message; raise :class:`MessageError` when it is not acceptable.
+
+    Parameters
+    ----------
+    raw : str
+        The WebSocket text message.
+    indices, presets : iterable of str
+        Accepted index names and TF presets.
+    label_ids : iterable of int, optional
+        The ids of the label volume shown; ``None``: not a label volume (``labels`` is
+        refused, ``mode`` must be ``dvr``).
+    steps : int
+        Time steps of the series shown; 0: one volume (``time`` is refused).
+    """
     if raw is None:
         raise _fail("message: expected a JSON text message")
     if isinstance(raw, (bytes, bytearray)):
@@ -254,6 +403,8 @@ def parse_message(raw: str | bytes | None, *, indices: Iterable[str], presets: I
         raise _fail(f"type: expected 'render', got {shown}")
     seq = _integer(d.get("seq", 0), "seq", 0, 2**53)
     camera = parse_camera(d["camera"]) if "camera" in d else None
+    if "tf" in d and label_ids is not None:
+        raise _fail("tf: a label volume is coloured per id; send labels {visible, colors} instead")
     tf = parse_tf(d["tf"], presets) if "tf" in d else None
     index = parse_index(d["index"], indices) if "index" in d else None
     width = _integer(d["width"], "width", MIN_SIDE, MAX_SIDE) if "width" in d else None
@@ -262,7 +413,14 @@ def parse_message(raw: str | bytes | None, *, indices: Iterable[str], presets: I
     if not isinstance(preview, bool):
         raise _fail(f"preview: expected true or false, got {type(preview).__name__}")
     fmt = _name(d.get("format", "jpeg"), "format", _FORMATS)
-    return RenderRequest(seq, camera, tf, index, width, height, preview, fmt)
+    mode = _name(d["mode"], "mode", MODES) if "mode" in d else None
+    if mode not in (None, "dvr") and label_ids is not None:
+        raise _fail(f"mode: {mode!r} needs a scalar field; a label volume renders with mode 'dvr'")
+    iso = parse_iso(d["iso"]) if "iso" in d else None
+    clip = parse_clip(d["clip"]) if "clip" in d else None
+    labels = parse_labels(d["labels"], label_ids) if "labels" in d else None
+    time_step = parse_time(d["time"], steps) if "time" in d else None
+    return RenderRequest(seq, camera, tf, index, width, height, preview, fmt, mode, iso, clip, labels, time_step)
 
 
 def frame_size(req_w: int | None, req_h: int | None, preview: bool) -> tuple[int, int]:

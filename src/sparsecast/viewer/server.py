@@ -148,6 +148,8 @@ def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: t
         pending: list[Snapshot | None] = [None]
         wake = asyncio.Event()
         indices = viewer_indices()
+        label_ids = None if data.labels is None else data.labels.ids
+        steps = 0 if data.series is None else len(data.series)
 
         async def send_json(obj: dict) -> None:
             async with send_lock:
@@ -197,7 +199,7 @@ def create_app(data: ViewerData, *, allow_remote: bool = False, allowed_hosts: t
                     break
                 try:
                     req = parse_message(msg.get("text") if msg.get("text") is not None else msg.get("bytes"),
-                                        indices=indices, presets=PRESETS)
+                                        indices=indices, presets=PRESETS, label_ids=label_ids, steps=steps)
                 except MessageError as exc:
                     await send_json({"type": "error", "message": str(exc)})
                     continue

@@ -1,10 +1,14 @@
 """Per-client viewer state, the index cache and the frame renderer (no web code here).
 
-A :class:`ViewerData` holds what every client shares: the volume it was started with,
-its histogram and the initial TF. A :class:`Session` holds one client's state
-(camera, TF, index) and renders frames; index builds are cached per session by
-(TF, index, cell), so camera moves reuse the index and only a TF or index change
-builds a new one.
+A :class:`ViewerData` holds what every client shares: the volume (or time series) it
+was started with, its histogram, the initial TF and, for a label volume, its label
+table (ids, colours, voxel counts). A :class:`Session` holds one client's state
+(camera, TF or label visibility, index, mode and isovalues, clip, time step) and
+renders frames. Index builds are cached per session by what decides emptiness: (time
+step, classification, index, cell), where the classification is the TF (DVR), the
+label table (labels), the TF's value range and the isovalues (``iso``: colour and
+opacity edits reuse the index) or TF and isovalues (``iso+dvr``). Camera moves and
+clip changes never rebuild; the clip is a render parameter every index honours.
 
 Speedup over naive: ``naive_ms / frame_ms`` where ``naive_ms`` is the last naive
 time known for this view (same TF, camera and image size): the frame itself when the
@@ -29,24 +33,34 @@ from typing import Any
 import numpy as np
 
 from ..camera import Camera
-from ..errors import SparsecastError
+from ..errors import ParameterError, SparsecastError
 from ..index import available_indices, build_index
 from ..index.auto import choose_index
 from ..index.registry import AUTO
-from ..render import render
-from ..transfer import PRESETS, TransferFunction
+from ..render import classification_tf, render
+from ..series import VolumeSeries
+from ..transfer import PRESETS, LabelTransferFunction, TransferFunction
 from ..volume import Volume
 from .messages import (
     CELL_SIZES,
+    FULL_CLIP,
+    MAX_ISOVALUES,
     MAX_TF_POINTS,
+    MODES,
     CameraSpec,
+    ClipSpec,
     IndexSpec,
+    LabelSpec,
     RenderRequest,
     TFSpec,
     frame_size,
 )
 
-__all__ = ["ViewerData", "Session", "tf_from_spec", "spec_from_tf", "spec_from_preset", "HISTOGRAM_BINS"]
+__all__ = ["ViewerData", "Session", "LabelTable", "tf_from_spec", "spec_from_tf", "spec_from_preset",
+           "clip_world", "HISTOGRAM_BINS"]
+
+#: one visible label: ``(id, r, g, b, a)``; a tuple of them is a label TF's cache key
+LabelEntry = tuple[int, float, float, float, float]
 
 HISTOGRAM_BINS = 128
 NAIVE_PROBE_SCALE = 0.5
@@ -107,6 +121,61 @@ def tf_from_spec(spec: TFSpec) -> TransferFunction:
     return TransferFunction(pts, (lo, hi), name=spec.colormap or "custom")
 
 
+@dataclass(frozen=True)
+class LabelTable:
+    """The label table of a label volume: every id it holds, a colour for each (the
+    TF's where it has one, distinct colours for the others), voxel counts, the ids the
+    starting TF shows, and that TF (for its unit distance and name)."""
+
+    ids: tuple[int, ...]
+    counts: tuple[int, ...]
+    colors: dict[int, tuple[float, float, float, float]]
+    visible: tuple[int, ...]
+    tf: LabelTransferFunction
+
+    @classmethod
+    def create(cls, volume: Volume, tf: LabelTransferFunction) -> "LabelTable":
+        found = volume.label_counts()
+        if found is None:
+            lo, hi = volume.value_range
+            raise ParameterError(
+                f"tf: a label TF needs a label volume (integer ids, at most 4096 distinct values); "
+                f"{volume.name} has values in [{lo:g}, {hi:g}]")
+        ids = tuple(int(i) for i in found[0])
+        # Ids the TF leaves out (or hides with opacity 0) get colours of their own, so that
+        # ticking one shows it: the palette entries after the ones a TF of generated
+        # colours (labels([ids])) took, so they differ from those.
+        own = {i: tuple(float(x) for x in c) for i, c in tf.labels.items() if i in set(ids) and c[3] > 0}
+        palette = list(TransferFunction.labels(list(range(len(ids) + len(own)))).labels.values())
+        missing = [i for i in ids if i not in own]
+        colors = {i: tuple(float(x) for x in palette[len(own) + k]) for k, i in enumerate(missing)}
+        colors.update(own)
+        visible = tuple(i for i in tf.visible if i in colors)
+        return cls(ids, tuple(int(c) for c in found[1]), colors, visible, tf)  # type: ignore[arg-type]
+
+    def entries(self, visible: tuple[int, ...], colors: dict[int, tuple]) -> tuple[LabelEntry, ...]:
+        return tuple((i, *colors[i]) for i in visible)  # type: ignore[misc]
+
+    def tf_for(self, entries: tuple[LabelEntry, ...]) -> LabelTransferFunction:
+        """The label TF showing ``entries`` (every other id hidden), as
+        ``tf.hidden(...)`` / ``tf.with_labels(...)`` build it."""
+        shown = {e[0]: e[1:] for e in entries} or {self.ids[0]: (0.0, 0.0, 0.0, 0.0)}
+        return LabelTransferFunction(shown, cmap=self.tf.cmap, unit_distance=self.tf.unit_distance,
+                                     name=self.tf.name)
+
+
+def clip_world(volume: Volume, clip: ClipSpec) -> dict[str, Any]:
+    """``render`` keyword arguments (world units) for ``clip`` (fractions of the volume
+    box); nothing for a clip of the whole box, which is what ``render`` does by default."""
+    if clip.is_full:
+        return {}
+    lo, hi = volume.bounds
+    ext = hi - lo
+    box = (tuple(lo + np.asarray(clip.box[0]) * ext), tuple(lo + np.asarray(clip.box[1]) * ext))
+    planes = [(tuple(lo + np.asarray(p[:3]) * ext), tuple(p[3:])) for p in clip.planes]
+    return {"clip_box": box, "clip_planes": planes or None}
+
+
 def viewer_indices() -> list[str]:
     """Index names the viewer offers: ``auto`` (chosen per frame), then every index."""
     return [AUTO, *available_indices()]
@@ -114,10 +183,15 @@ def viewer_indices() -> list[str]:
 
 @dataclass
 class ViewerData:
-    """What every client of one server shares."""
+    """What every client of one server shares.
+
+    ``volume`` is the volume shown, or step ``time`` of ``series`` (then the TF and
+    the histogram's range span every step; the histogram counts that step's voxels).
+    ``tf`` is ``None`` for a label volume, whose colours are ``labels``.
+    """
 
     volume: Volume
-    tf: TFSpec
+    tf: TFSpec | None
     index: IndexSpec = field(default_factory=lambda: IndexSpec(AUTO))
     camera: CameraSpec = field(default_factory=CameraSpec)
     dt: float | None = None
@@ -125,36 +199,74 @@ class ViewerData:
     #: elevation turn about it
     up: str | None = None
     view: str | None = None
+    series: VolumeSeries | None = None
+    time: int = 0
+    labels: LabelTable | None = None
+    mode: str = "dvr"
+    #: isovalues (data units); default: the middle of the value range
+    iso: tuple[float, ...] | None = None
+    clip: ClipSpec = FULL_CLIP
 
     def __post_init__(self) -> None:
         Camera.orbit(self.volume, up=self.up, view=self.view)  # a bad frame fails here, not per frame
+        if self.mode not in MODES:
+            raise ParameterError(f"mode: expected one of {', '.join(MODES)}, got {self.mode!r}")
+        if self.mode != "dvr" and self.labels is not None:
+            raise ParameterError(f"mode: {self.mode!r} needs a scalar field; a label volume renders with 'dvr'")
+        if self.series is not None:
+            self.time = self.series.step(self.time)
+        if (self.tf is None) == (self.labels is None):
+            raise ParameterError("tf: expected a TF spec for a scalar volume or a label table, not both")
         data = self.volume.data
-        lo, hi = self.volume.value_range
+        lo, hi = self.series.value_range if self.series is not None else self.volume.value_range
         if not hi > lo:
             hi = lo + 1.0
         sample = data.ravel()[:: max(1, data.size // 4_000_000)]
         counts, _ = np.histogram(sample, bins=HISTOGRAM_BINS, range=(lo, hi))
         self.histogram = counts.astype(np.int64)
         self.histogram_range = (float(lo), float(hi))
+        if self.iso is None:
+            self.iso = (0.5 * (self.histogram_range[0] + self.histogram_range[1]),)
+        if not 1 <= len(self.iso) <= MAX_ISOVALUES or not all(np.isfinite(self.iso)):
+            raise ParameterError(f"iso: expected 1 to {MAX_ISOVALUES} finite isovalues, got {self.iso!r}")
 
     @classmethod
-    def create(cls, volume: Volume, tf: TransferFunction | str | None = None,
-               index: str | None = None, cell: int | None = None, **kw) -> "ViewerData":
+    def create(cls, volume: Volume | VolumeSeries, tf: TransferFunction | str | None = None,
+               index: str | None = None, cell: int | None = None, *, time: int = 0, **kw) -> "ViewerData":
+        """Viewer data for a volume or a time series (shown at step ``time``).
+
+        ``tf``: a preset name (over the value range of the volume, or of every step
+        of a series), a :class:`TransferFunction`, or a :class:`LabelTransferFunction`
+        (then the volume is shown as a label volume with its table of ids).
+        """
+        series = None
+        if isinstance(volume, VolumeSeries):
+            series, volume = volume, volume[volume.step(time)]
+            kw["series"], kw["time"] = series, time
+        elif time != 0:
+            raise ParameterError(f"time: {volume.name} is one volume, not a time series; got time={time!r}")
+        value_range = series.value_range if series is not None else volume.value_range
         if tf is None:
             tf = "viridis"
-        spec = spec_from_preset(tf, volume.value_range) if isinstance(tf, str) else spec_from_tf(tf)
-        extra = {}
+        labels = None
+        if isinstance(tf, LabelTransferFunction):
+            labels, spec = LabelTable.create(volume, tf), None
+        elif isinstance(tf, str):
+            spec = spec_from_preset(tf, value_range)
+        else:
+            spec = spec_from_tf(tf)
+        extra: dict[str, Any] = {"labels": labels}
         if index is not None:
             if index not in viewer_indices():
-                from ..errors import ParameterError
-
                 raise ParameterError(f"index: unknown index {index!r}; expected one of: {', '.join(viewer_indices())}")
             if cell is not None and cell not in CELL_SIZES:
-                from ..errors import ParameterError
-
                 raise ParameterError(f"cell: expected one of {CELL_SIZES}, got {cell}")
             extra["index"] = IndexSpec(index, cell)
         return cls(volume, spec, **extra, **kw)
+
+    def volume_at(self, t: int) -> Volume:
+        """The volume of time step ``t`` (the one volume when this is not a series)."""
+        return self.volume if self.series is None else self.series[t]
 
     def warm_up(self) -> float:
         """Compute the per-volume brick statistics and compile (or load) the kernels of
@@ -162,44 +274,81 @@ class ViewerData:
         Returns the milliseconds spent."""
         t0 = time.perf_counter()
         s = Session(self)
-        s.render_frame(Snapshot(self.camera, self.tf, self.index, 16, 16, True, "jpeg", 0))
+        s.render_frame(s.update(RenderRequest(preview=True, width=16, height=16)))
         return (time.perf_counter() - t0) * 1e3
 
     def hello(self) -> dict[str, Any]:
         v = self.volume
+        lt = self.labels
         return {
             "type": "hello",
-            "volume": {"name": v.name, "dims": list(v.dims), "dtype": str(v.dtype),
-                       "value_range": list(self.histogram_range)},
+            "volume": {"name": v.name if self.series is None else self.series.name, "dims": list(v.dims),
+                       "dtype": str(v.dtype), "value_range": list(self.histogram_range)},
+            # A label volume: the page's label table (ids ascending, parallel lists).
+            "labels": None if lt is None else {
+                "ids": list(lt.ids), "counts": list(lt.counts),
+                "colors": [list(lt.colors[i]) for i in lt.ids], "visible": list(lt.visible)},
+            # A time series: the page's time slider.
+            "series": None if self.series is None else {"steps": len(self.series), "names": list(self.series.names)},
+            "modes": list(MODES) if lt is None else ["dvr"],
             "histogram": {"counts": self.histogram.tolist(), "range": list(self.histogram_range)},
             "indices": viewer_indices(),
             "presets": list(PRESETS),
             # Colours of each preset at 32 evenly spaced positions (for the editor's strip).
             "colormaps": {p: colormap_samples(p) for p in PRESETS},
             "cells": list(CELL_SIZES),
-            "limits": {"max_points": MAX_TF_POINTS, "preview": 256, "full": 512, "max_side": 1024, "min_side": 16},
+            "limits": {"max_points": MAX_TF_POINTS, "preview": 256, "full": 512, "max_side": 1024, "min_side": 16,
+                       "max_iso": MAX_ISOVALUES},
             "state": {
                 "camera": {"azimuth": self.camera.azimuth, "elevation": self.camera.elevation,
                            "zoom": self.camera.zoom, "pan": list(self.camera.pan)},
-                "tf": {"points": [list(p) for p in self.tf.points], "colormap": self.tf.colormap,
-                       "value_range": list(self.tf.value_range)},
+                "tf": None if self.tf is None else {
+                    "points": [list(p) for p in self.tf.points], "colormap": self.tf.colormap,
+                    "value_range": list(self.tf.value_range)},
                 "index": {"name": self.index.name, "cell": self.index.cell},
+                "mode": self.mode,
+                "iso": list(self.iso or ()),
+                "clip": {"box": [list(self.clip.box[0]), list(self.clip.box[1])],
+                         "planes": [list(p) for p in self.clip.planes]},
+                "time": self.time,
             },
         }
 
 
 @dataclass(frozen=True)
 class Snapshot:
-    """Immutable state a render works from (taken in the event loop, used in a thread)."""
+    """Immutable state a render works from (taken in the event loop, used in a thread).
+
+    ``tf`` is ``None`` for a label volume, whose TF is ``labels`` (the visible ids
+    with their colours)."""
 
     camera: CameraSpec
-    tf: TFSpec
+    tf: TFSpec | None
     index: IndexSpec
     width: int
     height: int
     preview: bool
     format: str
     seq: int
+    mode: str = "dvr"
+    iso: tuple[float, ...] = ()
+    clip: ClipSpec = FULL_CLIP
+    labels: tuple[LabelEntry, ...] | None = None
+    time: int = 0
+
+    @property
+    def tf_key(self) -> tuple:
+        """What the colours come from: the TF spec, or the visible labels."""
+        return ("labels", self.labels) if self.tf is None else ("tf", self.tf)
+
+    @property
+    def classification(self) -> tuple:
+        """What decides emptiness, so what an index is built for (a cache key)."""
+        if self.mode == "dvr":
+            return self.tf_key
+        if self.mode == "iso":  # the spiked TF keeps only the range's table grid of the TF
+            return ("iso", self.tf.value_range, self.iso)  # type: ignore[union-attr]
+        return ("iso+dvr", self.tf, self.iso)
 
 
 class Session:
@@ -211,15 +360,23 @@ class Session:
         self.camera = data.camera
         self.tf = data.tf
         self.index = data.index
+        self.mode = data.mode
+        self.iso: tuple[float, ...] = tuple(data.iso or ())
+        self.clip = data.clip
+        self.time = data.time
+        lt = data.labels
+        self.label_visible: tuple[int, ...] = () if lt is None else lt.visible
+        self.label_colors: dict[int, tuple] = {} if lt is None else dict(lt.colors)
         self.width: int | None = None
         self.height: int | None = None
-        self._tfs: OrderedDict[TFSpec, TransferFunction] = OrderedDict()
+        self._tfs: OrderedDict[tuple, TransferFunction] = OrderedDict()
         self._indices: OrderedDict[tuple, Any] = OrderedDict()
         self._naive_ms: OrderedDict[tuple, float] = OrderedDict()
         self.frames = 0
-        # TF of the last full (not preview) frame: a preview with another TF means a
-        # TF point is being dragged, and "auto" then picks a rebuild-cheap index.
-        self._settled_tf: TFSpec | None = None
+        # Classification of the last full (not preview) frame: a preview with another
+        # one means a TF point or the isovalue is being dragged, and "auto" then picks a
+        # rebuild-cheap index.
+        self._settled: tuple | None = None
 
     def update(self, req: RenderRequest) -> Snapshot:
         if req.camera is not None:
@@ -232,58 +389,91 @@ class Session:
             self.width = req.width
         if req.height is not None:
             self.height = req.height
+        if req.mode is not None:
+            self.mode = req.mode
+        if req.iso is not None:
+            self.iso = req.iso
+        if req.clip is not None:
+            self.clip = req.clip
+        if req.time is not None:
+            self.time = req.time
+        if req.labels is not None:
+            self._apply_labels(req.labels)
         w, h = frame_size(self.width, self.height, req.preview)
-        return Snapshot(self.camera, self.tf, self.index, w, h, req.preview, req.format, req.seq)
+        lt = self.data.labels
+        labels = None if lt is None else lt.entries(self.label_visible, self.label_colors)
+        return Snapshot(self.camera, self.tf, self.index, w, h, req.preview, req.format, req.seq,
+                        self.mode, self.iso, self.clip, labels, self.time)
+
+    def _apply_labels(self, spec: LabelSpec) -> None:
+        for i, *rgba in spec.colors:
+            self.label_colors[i] = tuple(rgba)
+        if spec.visible is not None:
+            self.label_visible = spec.visible
 
     # -- worker-thread side --------------------------------------------------
-    def _tf(self, spec: TFSpec) -> TransferFunction:
-        tf = self._tfs.get(spec)
+    def _tf(self, s: Snapshot) -> TransferFunction:
+        key = s.tf_key
+        tf = self._tfs.get(key)
         if tf is None:
-            tf = tf_from_spec(spec)
-            self._tfs[spec] = tf
+            tf = tf_from_spec(s.tf) if s.tf is not None else self.data.labels.tf_for(s.labels)  # type: ignore[union-attr]
+            self._tfs[key] = tf
             while len(self._tfs) > _INDEX_CACHE:
                 self._tfs.popitem(last=False)
         else:
-            self._tfs.move_to_end(spec)
+            self._tfs.move_to_end(key)
         return tf
 
-    def _index(self, tf_spec: TFSpec, tf: TransferFunction, ispec: IndexSpec):
-        key = (tf_spec, ispec.name, ispec.cell)
+    def _index(self, s: Snapshot, volume: Volume, classify: TransferFunction, ispec: IndexSpec):
+        key = (s.time, s.classification, ispec.name, ispec.cell)
         idx = self._indices.get(key)
         if idx is not None:
             self._indices.move_to_end(key)
             return idx, 0.0, False
         opts = {} if ispec.cell is None else {"cell": ispec.cell}
         t0 = time.perf_counter()
-        idx = build_index(self.data.volume, tf, ispec.name, **opts)
+        idx = build_index(volume, classify, ispec.name, **opts)
         ms = (time.perf_counter() - t0) * 1e3
         self._indices[key] = idx
         while len(self._indices) > _INDEX_CACHE:
             self._indices.popitem(last=False)
         return idx, ms, True
 
-    def _camera(self, c: CameraSpec) -> Camera:
-        return Camera.orbit(self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan,
+    def _camera(self, c: CameraSpec, volume: Volume | None = None) -> Camera:
+        # Every step of a series shares one grid, so any step frames the same camera.
+        return Camera.orbit(volume or self.data.volume, c.azimuth, c.elevation, zoom=c.zoom, pan=c.pan,
                             up=self.data.up, view=self.data.view)
 
     @staticmethod
     def _view_key(s: Snapshot, w: int | None = None, h: int | None = None) -> tuple:
-        return (s.tf, s.camera, s.width if w is None else w, s.height if h is None else h)
+        return (s.tf_key, s.camera, s.mode, s.iso, s.clip, s.time,
+                s.width if w is None else w, s.height if h is None else h)
+
+    def _render_kw(self, s: Snapshot, volume: Volume) -> dict[str, Any]:
+        """What ``render`` takes besides the index for snapshot ``s``: clip (world
+        units), mode and isovalues, step, background."""
+        kw: dict[str, Any] = dict(dt=self.data.dt, background="black", **clip_world(volume, s.clip))
+        if s.mode != "dvr":
+            kw.update(mode=s.mode, iso=list(s.iso))
+        return kw
 
     def render_frame(self, s: Snapshot) -> tuple[bytes, dict[str, Any]]:
         """Render ``s``; return the encoded image and the status message."""
         t_all = time.perf_counter()
-        tf = self._tf(s.tf)
+        volume = self.data.volume_at(s.time)
+        tf = self._tf(s)
+        classify = classification_tf(tf, s.mode, s.iso)
         ispec, auto = s.index, None
         if ispec.name == AUTO:
-            editing = s.preview and s.tf != self._settled_tf
-            name, auto = choose_index(self.data.volume, tf, editing=editing, names=available_indices())
+            editing = s.preview and s.classification != self._settled
+            name, auto = choose_index(volume, classify, editing=editing, names=available_indices())
             ispec = IndexSpec(name, None)
         if not s.preview:
-            self._settled_tf = s.tf
-        idx, build_ms, rebuilt = self._index(s.tf, tf, ispec)
-        img = render(self.data.volume, tf, self._camera(s.camera), s.width, s.height,
-                     dt=self.data.dt, index=idx, background="black")
+            self._settled = s.classification
+        idx, build_ms, rebuilt = self._index(s, volume, classify, ispec)
+        # DVR: the TF the cached index was built for (equal to tf; render checks identity).
+        img = render(volume, idx.tf if s.mode == "dvr" else tf, self._camera(s.camera, volume), s.width, s.height,
+                     index=idx, **self._render_kw(s, volume))
         st = img.stats
         if ispec.name == "naive":
             self._remember_naive(self._view_key(s), st["ms"])
@@ -303,6 +493,8 @@ class Session:
             "index": ispec.name,
             "auto": auto,
             "cell": getattr(idx, "cell", None),
+            "mode": s.mode,
+            "time": s.time,
             "rebuilt": rebuilt,
             "rebuild_ms": round(build_ms, 3),
             "frame_ms": round(st["ms"], 3),
@@ -316,6 +508,7 @@ class Session:
             "speedup_source": None if naive_ms is None else ("measured" if ispec.name == "naive" else "estimated"),
         }
         self.last_frame_ms = st["ms"]
+        self.last_rgba = img.rgba  # (H, W, 4) premultiplied float32: what was encoded (tests)
         return payload, status
 
     def _remember_naive(self, key: tuple, ms: float) -> None:
@@ -339,9 +532,9 @@ class Session:
         """Estimate the naive time of view ``s`` from a small naive render; a status update."""
         pw = max(16, int(round(s.width * NAIVE_PROBE_SCALE)))
         ph = max(16, int(round(s.height * NAIVE_PROBE_SCALE)))
-        tf = self._tf(s.tf)
-        img = render(self.data.volume, tf, self._camera(s.camera), pw, ph, dt=self.data.dt,
-                     index="naive", background="black")
+        volume = self.data.volume_at(s.time)
+        img = render(volume, self._tf(s), self._camera(s.camera, volume), pw, ph, index="naive",
+                     **self._render_kw(s, volume))
         est = img.stats["ms"] * (s.width * s.height) / (pw * ph)
         self._remember_naive(self._view_key(s), est)
         return {

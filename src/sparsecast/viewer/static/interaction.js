@@ -1,4 +1,4 @@
-// sparsecast viewer: pure mappings from pointer motion to camera and TF values.
+// sparsecast viewer: pure mappings from pointer motion and sliders to camera, TF, clip and isovalues.
 // No DOM here, so tests can run it under node (tests/viewer/test_interaction.py).
 "use strict";
 (function (root) {
@@ -28,7 +28,25 @@
     return Math.max(0, Math.min(1, up / span));
   }
 
-  const api = { orbitDrag, opacityAt, ORBIT_DEG_PER_PX, SNAP_PX };
+  // Range sliders have SLIDER_STEPS integer positions; these map them onto [lo, hi].
+  const SLIDER_STEPS = 1000;
+  function sliderValue(pos, lo, hi) {
+    return lo + (Math.max(0, Math.min(SLIDER_STEPS, pos)) / SLIDER_STEPS) * (hi - lo);
+  }
+  function sliderPos(v, lo, hi) {
+    if (!(hi > lo)) return 0;
+    return Math.round(Math.max(0, Math.min(1, (v - lo) / (hi - lo))) * SLIDER_STEPS);
+  }
+
+  // Clip interval [lo, hi] of one axis after one of its sliders moved: the slider that
+  // moved wins and pushes the other along, so lo <= hi always holds (the server
+  // refuses lo > hi).
+  function clipPair(lo, hi, moved) {
+    if (lo <= hi) return [lo, hi];
+    return moved === "lo" ? [lo, lo] : [hi, hi];
+  }
+
+  const api = { orbitDrag, opacityAt, sliderValue, sliderPos, clipPair, ORBIT_DEG_PER_PX, SNAP_PX, SLIDER_STEPS };
   if (typeof module !== "undefined" && module.exports) module.exports = api;
   else root.sparsecastInteraction = api;
 })(typeof window !== "undefined" ? window : globalThis);

@@ -10,6 +10,9 @@
 
   const st = {
     ws: null, hello: null, camera: null, tf: null, index: null,
+    // mode and isovalues (data units), clip box (fractions of the volume box), time step;
+    // label volumes: the visible ids and the colours the user changed (id -> rgba)
+    mode: "dvr", iso: [], clip: null, time: 0, labelVisible: new Set(), labelColors: new Map(),
     seq: 0, frames: 0, previewFrames: 0, lastStatus: null, pendingStatus: null,
     dirty: false, preview: false, idleTimer: 0, rafQueued: false,
     cmapColors: {},
@@ -64,8 +67,9 @@
   function showStatus(s) {
     const sp = s.speedup == null ? "speedup: measuring when idle" :
       `speedup ${s.speedup.toFixed(1)}x over naive (${f1(s.naive_ms)} ms ${s.speedup_source})`;
+    const extra = (s.mode && s.mode !== "dvr" ? " " + s.mode : "") + (st.hello && st.hello.series ? ` t=${s.time}` : "");
     $("status").textContent =
-      `${s.auto ? "auto: " : ""}${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""} | ` +
+      `${s.auto ? "auto: " : ""}${s.index}${s.cell ? " cell " + s.cell : ""} ${s.width}x${s.height}${s.preview ? " preview" : ""}${extra} | ` +
       `rebuild ${s.rebuilt ? f1(s.rebuild_ms) + " ms" : "cached"} | frame ${f1(s.frame_ms)} ms | ` +
       `${(s.samples / 1e6).toFixed(2)} M samples | ${sp}`;
   }
@@ -73,14 +77,18 @@
   function onHello(h) {
     st.hello = h;
     st.camera = Object.assign({}, h.state.camera);
-    st.tf = { points: h.state.tf.points.map((p) => p.slice()), colormap: h.state.tf.colormap,
-              value_range: h.state.tf.value_range.slice() };
+    // A label volume has no TF to edit: its colours are the label table's.
+    st.tf = h.state.tf ? { points: h.state.tf.points.map((p) => p.slice()), colormap: h.state.tf.colormap,
+                           value_range: h.state.tf.value_range.slice() } : null;
     st.index = Object.assign({}, h.state.index);
+    st.mode = h.state.mode; st.iso = h.state.iso.slice(); st.time = h.state.time;
+    st.clip = { box: h.state.clip.box.map((c) => c.slice()), planes: h.state.clip.planes.map((p) => p.slice()) };
+    $("tf-box").hidden = !st.tf;
     $("volume-name").textContent = `${h.volume.name} ${h.volume.dims.join("x")} ${h.volume.dtype}`;
     const cm = $("colormap"); cm.innerHTML = "";
     cm.add(new Option("(point colours)", ""));
     for (const p of h.presets) cm.add(new Option(p, p));
-    cm.value = st.tf.colormap || "";
+    cm.value = (st.tf && st.tf.colormap) || "";
     const ix = $("index"); ix.innerHTML = "";
     for (const n of h.indices) ix.add(new Option(n, n));
     ix.value = st.index.name;
@@ -88,14 +96,35 @@
     ce.add(new Option("default", ""));
     for (const c of h.cells) ce.add(new Option(String(c), String(c)));
     ce.value = st.index.cell == null ? "" : String(st.index.cell);
+    const md = $("mode"); md.innerHTML = "";
+    for (const m of h.modes) md.add(new Option(m, m));
+    $("mode-box").hidden = h.modes.length < 2;
+    buildLabelTable(h.labels);
+    $("time-box").hidden = !h.series;
+    if (h.series) $("time").max = String(h.series.steps - 1);
     syncInputs();
-    drawTF();
+    if (st.tf) drawTF();
     request(false, true);
   }
 
   function syncInputs() {
-    $("range-lo").value = st.tf.value_range[0];
-    $("range-hi").value = st.tf.value_range[1];
+    if (st.tf) {
+      $("range-lo").value = st.tf.value_range[0];
+      $("range-hi").value = st.tf.value_range[1];
+    }
+    $("mode").value = st.mode;
+    $("iso-row").hidden = st.mode === "dvr";
+    const vr = st.hello.volume.value_range;
+    $("iso").value = String(ui.sliderPos(st.iso[0], vr[0], vr[1]));
+    $("iso-value").textContent = Number(st.iso[0]).toPrecision(4);
+    AXES.forEach((a, j) => {
+      $(`clip-${a}-lo`).value = String(Math.round(st.clip.box[0][j] * ui.SLIDER_STEPS));
+      $(`clip-${a}-hi`).value = String(Math.round(st.clip.box[1][j] * ui.SLIDER_STEPS));
+    });
+    if (st.hello.series) {
+      $("time").value = String(st.time);
+      $("time-value").textContent = `${st.time} / ${st.hello.series.steps - 1}  ${st.hello.series.names[st.time]}`;
+    }
     $("azimuth").value = st.camera.azimuth.toFixed(1);
     $("elevation").value = st.camera.elevation.toFixed(1);
     $("zoom").value = st.camera.zoom.toFixed(2);
@@ -120,8 +149,14 @@
     const msg = {
       type: "render", seq: st.seq, preview: st.preview,
       width: view.width, height: view.height,
-      camera: st.camera, tf: st.tf, index: st.index,
+      camera: st.camera, index: st.index, mode: st.mode, iso: st.iso, clip: st.clip,
     };
+    if (st.tf) msg.tf = st.tf;
+    if (st.hello.series) msg.time = st.time;
+    if (st.hello.labels) {
+      // Only the colours the user changed travel: a table of thousands of ids would not fit a message.
+      msg.labels = { visible: [...st.labelVisible], colors: [...st.labelColors].map(([i, c]) => [i, ...c]) };
+    }
     st.sendAll = false;
     st.ws.send(JSON.stringify(msg));
   }
@@ -194,6 +229,7 @@
   }
 
   function drawTF() {
+    if (!st.tf) return;
     const w = tfc.width, h = tfc.height;
     tctx.clearRect(0, 0, w, h);
     const hist = st.hello.histogram.counts, vr = st.hello.histogram.range, tr = st.tf.value_range;
@@ -252,7 +288,7 @@
 
   let tdrag = -1;
   tfc.addEventListener("pointerdown", (e) => {
-    if (e.button !== 0 || !st.hello) return;
+    if (e.button !== 0 || !st.hello || !st.tf) return;
     const [x, y] = canvasXY(e);
     let i = pointAt(x, y);
     if (i < 0) {
@@ -309,6 +345,72 @@
   $("cell").addEventListener("change", () => {
     const v = $("cell").value; st.index.cell = v ? parseInt(v, 10) : null; request(false);
   });
+
+  // --- render mode and isovalue ---------------------------------------------------------
+  const AXES = ["x", "y", "z"];
+  $("mode").addEventListener("change", () => { st.mode = $("mode").value; syncInputs(); request(false); });
+  // Sliders: "input" while dragging (preview frames), "change" on release (a full frame).
+  function onSlide(el, apply) {
+    el.addEventListener("input", () => { apply(); syncInputs(); request(true); });
+    el.addEventListener("change", () => { apply(); syncInputs(); request(false); });
+  }
+  onSlide($("iso"), () => {
+    const vr = st.hello.volume.value_range;
+    st.iso[0] = ui.sliderValue(parseInt($("iso").value, 10), vr[0], vr[1]);
+  });
+
+  // --- clip box: two sliders per axis, fractions of the volume box ----------------------
+  AXES.forEach((a, j) => {
+    for (const side of ["lo", "hi"]) {
+      onSlide($(`clip-${a}-${side}`), () => {
+        const lo = parseInt($(`clip-${a}-lo`).value, 10) / ui.SLIDER_STEPS;
+        const hi = parseInt($(`clip-${a}-hi`).value, 10) / ui.SLIDER_STEPS;
+        [st.clip.box[0][j], st.clip.box[1][j]] = ui.clipPair(lo, hi, side);
+      });
+    }
+  });
+  $("clip-reset").addEventListener("click", () => {
+    st.clip = { box: [[0, 0, 0], [1, 1, 1]], planes: [] }; syncInputs(); request(false);
+  });
+
+  // --- time ---------------------------------------------------------------------------------
+  onSlide($("time"), () => { st.time = parseInt($("time").value, 10); });
+
+  // --- label table: a checkbox, a colour swatch (a picker) and the voxel count per id ------
+  const hex = (c) => "#" + c.slice(0, 3).map((v) => Math.round(v * 255).toString(16).padStart(2, "0")).join("");
+  const unhex = (s) => [1, 3, 5].map((i) => parseInt(s.slice(i, i + 2), 16) / 255);
+  function buildLabelTable(labels) {
+    $("labels-box").hidden = !labels;
+    const body = $("label-table").tBodies[0]; body.innerHTML = "";
+    if (!labels) return;
+    st.labelVisible = new Set(labels.visible);
+    labels.ids.forEach((id, k) => {
+      const tr = body.insertRow();
+      const box = document.createElement("input");
+      box.type = "checkbox"; box.checked = st.labelVisible.has(id); box.dataset.id = String(id);
+      box.addEventListener("change", () => {
+        if (box.checked) st.labelVisible.add(id); else st.labelVisible.delete(id);
+        request(false);
+      });
+      tr.insertCell().appendChild(box);
+      tr.insertCell().textContent = String(id);
+      const pick = document.createElement("input");
+      pick.type = "color"; pick.value = hex(labels.colors[k]); pick.title = `colour of label ${id}`;
+      const alpha = labels.colors[k][3] > 0 ? labels.colors[k][3] : 1;
+      const recolour = (preview) => { st.labelColors.set(id, [...unhex(pick.value), alpha]); request(preview); };
+      pick.addEventListener("input", () => recolour(true));
+      pick.addEventListener("change", () => recolour(false));
+      tr.insertCell().appendChild(pick);
+      const n = tr.insertCell(); n.className = "num"; n.textContent = labels.counts[k].toLocaleString("en");
+    });
+  }
+  function setAllLabels(on) {
+    st.labelVisible = new Set(on ? st.hello.labels.ids : []);
+    for (const b of $("label-table").querySelectorAll("input[type=checkbox]")) b.checked = on;
+    request(false);
+  }
+  $("labels-all").addEventListener("click", () => setAllLabels(true));
+  $("labels-none").addEventListener("click", () => setAllLabels(false));
 
   connect();
 })();
