@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import _thread
-import threading
+import signal
 import time
 
 import numpy as np
@@ -32,16 +32,23 @@ def test_tiny_dt_is_refused_before_any_work():
 def test_an_interrupt_stops_the_frame_between_chunks(monkeypatch):
     """Ctrl-C while a frame renders: KeyboardInterrupt within a chunk, the rest cancelled."""
     monkeypatch.setattr(schedule, "n_threads", lambda: 2)
+    # Ctrl-C as Python delivers it (another library in the process may have replaced the
+    # handler, and interrupt_main does nothing without Python's own).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     calls = []
 
     def slow_chunk(first, last):
         calls.append(first)
+        if len(calls) == 3:  # Ctrl-C during the frame, from a worker (no timer to race)
+            _thread.interrupt_main()
         time.sleep(0.05)
 
-    threading.Timer(0.12, _thread.interrupt_main).start()
     t0 = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        schedule.run_tiles(slow_chunk, 8 * 64, 8 * 64)  # 4096 tiles, 32 chunks of 0.05 s: 0.8 s
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            schedule.run_tiles(slow_chunk, 8 * 64, 8 * 64)  # 4096 tiles, 32 chunks of 0.05 s: 0.8 s
+    finally:
+        signal.signal(signal.SIGINT, previous)
     waited = time.perf_counter() - t0
     assert waited < 0.5
     time.sleep(0.15)  # chunks already running finish; the others were cancelled
