@@ -121,3 +121,16 @@ def test_orbit_pan_shifts_the_view(vol, projection):
     assert x < 31.5 and y < 23.5  # centre moved left and up on screen
     with pytest.raises(sc.ParameterError, match="pan"):
         sc.Camera.orbit(vol, pan=(np.nan, 0))
+
+
+def test_azimuth_moves_the_camera_clockwise_seen_from_above():
+    """As the module docstring says: azimuth 0 looks along +y, azimuth 90 along +x."""
+    import numpy as np
+
+    import sparsecast as sc
+
+    vol = sc.Volume(np.zeros((8, 8, 8), np.float32))
+    to_eye = [sc.Camera.orbit(vol, az, 0).eye - vol.center for az in (0, 90)]
+    np.testing.assert_allclose(to_eye[0] / np.linalg.norm(to_eye[0]), [0, -1, 0], atol=1e-12)
+    np.testing.assert_allclose(to_eye[1] / np.linalg.norm(to_eye[1]), [-1, 0, 0], atol=1e-12)
+    assert np.cross(to_eye[0], to_eye[1])[2] < 0  # clockwise about +z

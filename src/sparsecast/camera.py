@@ -5,8 +5,9 @@ view); :meth:`Camera.ray_params` packs it into the flat float64 array that the
 Numba ray generator (:func:`sparsecast.kernels.camera.primary_ray`) reads.
 
 Orbit convention: +z is up on screen. At azimuth 0 and elevation 0 the camera looks
-along +y, so +x points right; azimuth turns the camera counter-clockwise about +z
-(seen from above) and elevation raises it towards +z. ``up=`` and ``view=`` rotate
+along +y, so +x points right; azimuth moves the camera clockwise about +z seen from
+above (azimuth 90 looks along +x from the -x side, so the object seems to turn
+counter-clockwise) and elevation raises it towards +z. ``up=`` and ``view=`` rotate
 that frame (:mod:`sparsecast.axes`): the angles are then taken about another world axis,
 or from a named anatomical view. The camera moves, the data never does, so every index
 stays exact.
