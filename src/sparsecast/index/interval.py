@@ -146,17 +146,10 @@ def _integrate_lattice(record, scratch, state, mode, sampler, flat, nx, ny, nz, 
             )
 
         return impl
-    if kind is Iso:
+    if kind is Iso or kind is IsoDvr:
         def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
                  ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
-            return iso_interval(False, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
-                                dt, t0, t1, k_next, k_min, k_max, acc, ert, shading)
-
-        return impl
-    if kind is IsoDvr:
-        def impl(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt,
-                 ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
-            return iso_interval(True, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
+            return iso_interval(mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
                                 dt, t0, t1, k_next, k_min, k_max, acc, ert, shading)
 
         return impl

@@ -23,13 +23,14 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
 from .ray import lattice_range
 from .sample import gradient
 from .sampler import sample
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
-__all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "iso_interval"]
+__all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
 
 #: bisection steps refining a crossing (then one secant step): 2^-10 of a lattice step
 ISO_STEPS = 10
@@ -57,6 +58,21 @@ class IsoDvr(NamedTuple):
 
     values: np.ndarray
     colors: np.ndarray
+
+
+def composites_dvr(mode):  # pragma: no cover - replaced by overloads in jitted code
+    """Whether the iso ``mode`` also composites DVR samples (:class:`IsoDvr`)."""
+    raise NotImplementedError("composites_dvr is only callable from jitted code")
+
+
+@overload(composites_dvr, inline="always")
+def _composites_dvr(mode):
+    cls = getattr(mode, "instance_class", None)
+    if cls is IsoDvr:
+        return lambda mode: True
+    if cls is Iso:
+        return lambda mode: False
+    return None
 
 
 @njit(cache=True, inline="always")
@@ -104,15 +120,15 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
 
 @njit(cache=True, inline="always")
 def iso_interval(
-    dvr, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
+    mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
     dt, t0, t1, k_next, k_min, k_max, acc, ert, shading,
 ):
     """Test the sample pairs ``(k-1, k)`` an interval ``[t0, t1]`` owns (see the module docstring).
 
     Pair ends ``k`` run from ``max(k0, k_next)`` to ``min(k1 + 1, k_max)``; a pair
-    needs ``k - 1 >= k_min`` (both samples inside the clip). ``dvr`` (a compile-time
-    constant) also composites the DVR sample ``k`` after the surfaces in front of
-    it, for every ``k`` visited, the first of the clip included. Returns
+    needs ``k - 1 >= k_min`` (both samples inside the clip). An :class:`IsoDvr`
+    ``mode`` also composites the DVR sample ``k`` after the surfaces in front of it,
+    for every ``k`` visited, the first of the clip included. Returns
     ``(r, g, b, a, k_next, n_samples, n_nonempty)`` as
     :func:`.march.march_interval` does, ``k_next`` being the first ``k`` not
     visited; ``n_nonempty`` counts surfaces (and DVR samples) composited.
@@ -122,6 +138,7 @@ def iso_interval(
     ox, oy, oz, dx, dy, dz = ray
     wdx, wdy, wdz = wdir
     r, g, b, a = acc
+    dvr = composites_dvr(mode)  # a compile-time constant per marker type
     values = mode.values
     colors = mode.colors
     k0, k1 = lattice_range(t0, t1, dt)
