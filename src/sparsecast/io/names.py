@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
-__all__ = ["suffix_of", "stem_of"]
+__all__ = ["suffix_of", "stem_of", "natural_key"]
 
 
 def suffix_of(path: Path) -> str:
@@ -21,3 +22,8 @@ def stem_of(path: Path) -> str:
     if suffix and path.name.lower().endswith(suffix):
         return path.name[: len(path.name) - len(suffix)] or path.name
     return path.stem or path.name
+
+
+def natural_key(p: Path) -> list:
+    """Sort key of a file name in natural order: ``s2`` before ``s10`` (slices, time steps)."""
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", p.name)]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import glob
 import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -14,14 +13,11 @@ from ..errors import FileFormatError, ParameterError
 from ..series import DEFAULT_CACHE_BYTES, VolumeSeries
 from .files import require_regular_file
 from .formats import READ_SUFFIXES
-from .names import suffix_of
+from .names import natural_key, suffix_of
 from .volumes import load_volume
 
 __all__ = ["load_series"]
 
-
-def _natural_key(p: Path):
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", p.name)]
 
 
 def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=None, origin=None,
@@ -60,13 +56,13 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
             return _npy_series(path, spacing, origin, cache_bytes)
         if path.is_dir():
             files = sorted((f for f in path.iterdir() if f.is_file() and suffix_of(f) in READ_SUFFIXES),
-                           key=_natural_key)
+                           key=natural_key)
             label = text
             if not files:
                 raise FileFormatError(f"{text!r}: directory holds no volume files ({', '.join(READ_SUFFIXES)}); "
                                       "expected one file per time step")
         elif glob.has_magic(text):
-            files = sorted((Path(f) for f in glob.glob(text)), key=_natural_key)
+            files = sorted((Path(f) for f in glob.glob(text)), key=natural_key)
             label = text
             if not files:
                 raise FileFormatError(f"{text!r}: the pattern matches no files; expected one file per time step")

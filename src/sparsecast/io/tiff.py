@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ from ..errors import FileFormatError
 from ..volume import Volume
 from .budget import check_declared
 from .files import file_size, require_regular_file
+from .names import natural_key
 from .reading import Read, read_guard
 
 __all__ = ["TIFF_SUFFIXES", "read_tiff", "read_tiff_dir", "write_tiff"]
@@ -82,16 +82,13 @@ def _check_series(path: Path, series) -> None:
     check_declared(path, declared, what, available=None if compressed else stored)
 
 
-def _natural_key(p: Path):
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", p.name)]
-
 
 def read_tiff_dir(path: Path) -> Read:
     """A directory of 2-D grayscale TIFF slices (same shape and dtype), stacked along z
     in natural name order (``s2.tif`` before ``s10.tif``)."""
     files = sorted(
         (f for f in path.iterdir() if f.is_file() and f.suffix.lower() in TIFF_SUFFIXES),
-        key=_natural_key,
+        key=natural_key,
     )
     if not files:
         raise FileFormatError(
