@@ -150,7 +150,7 @@ class TransferFunction:
         self.table = self._bake()
         self.table.flags.writeable = False
         # prefix[i] = number of entries among table[:i] with non-zero opacity.
-        self._prefix = np.concatenate(([0], np.cumsum(self.table[:, 3] > 0))).astype(np.int64)
+        self._prefix = _nonzero_prefix(self.table)
 
     # -- construction -----------------------------------------------------
     @classmethod
@@ -330,7 +330,7 @@ class TransferFunction:
         out.name = f"{self.name}+iso"
         out.table = table
         out.table.flags.writeable = False
-        out._prefix = np.concatenate(([0], np.cumsum(table[:, 3] > 0))).astype(np.int64)
+        out._prefix = _nonzero_prefix(table)
         return out
 
     def opacity_table(self, dt: float, unit_distance: float) -> np.ndarray:
@@ -411,6 +411,12 @@ class TransferFunction:
         lo, hi = self.value_range
         return (f"TransferFunction(name={self.name!r}, points={len(self.points)}, "
                 f"value_range=({lo:g}, {hi:g}), table_size={self.table_size})")
+
+
+def _nonzero_prefix(table: np.ndarray) -> np.ndarray:
+    """``prefix[i]``: entries among ``table[:i]`` with non-zero opacity, int64 of length n + 1
+    (what makes "is ``[lo, hi]`` empty?" O(1) for every kind of TF)."""
+    return np.concatenate(([0], np.cumsum(table[:, 3] > 0))).astype(np.int64)
 
 
 def _colormap_points(name: str, threshold: float, max_opacity: float) -> np.ndarray:
@@ -574,7 +580,7 @@ class LabelTransferFunction(TransferFunction):
         self.name = name
         self.table = table
         self.table.flags.writeable = False
-        self._prefix = np.concatenate(([0], np.cumsum(table[:, 3] > 0))).astype(np.int64)
+        self._prefix = _nonzero_prefix(table)
         # One step per id: what the piecewise-linear view (viewer, repr) shows.
         pts = [(float(i), *c) for i, c in self.labels.items()]
         self.points = np.array(pts, np.float64)

@@ -335,12 +335,11 @@ class Volume:
             nbz, nby, nbx = (max(1, -(-(n - 1) // brick_size)) for n in self.shape)
             n_words = (len(ids) - 1) // 64 + 1
             words = np.zeros((nbz, nby, nbx, n_words), np.uint64)
-            base = self.brick_labels(BASE_BRICK) if brick_size != BASE_BRICK else None
-            if base is not None and brick_size > BASE_BRICK and brick_size % BASE_BRICK == 0 \
-                    and brick_size <= max(self.shape):
-                # A coarse brick's set is the union of the base bricks' sets it covers.
+            if brick_size > BASE_BRICK and brick_size % BASE_BRICK == 0 and brick_size <= max(self.shape):
+                # A coarse brick's set is the union of the base bricks' sets it covers
+                # (only then are the base sets worth computing: no pass for bricks of 4).
                 f = brick_size // BASE_BRICK
-                fine = base.words
+                fine = self.brick_labels(BASE_BRICK).words
                 pad = [(0, s * f - n) for s, n in zip((nbz, nby, nbx), fine.shape[:3])] + [(0, 0)]
                 fine = np.pad(fine, pad).reshape(nbz, f, nby, f, nbx, f, n_words)
                 words = np.bitwise_or.reduce(np.bitwise_or.reduce(np.bitwise_or.reduce(fine, axis=5), axis=3), axis=1)

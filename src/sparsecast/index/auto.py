@@ -59,7 +59,6 @@ def choose_index(volume, tf, *, editing: bool = False, dense_occupancy: float = 
         ``Image.stats["auto"]``.
     """
     dense_occupancy = as_float(dense_occupancy, "dense_occupancy", lo=0.0, hi=1.0)
-    bricks = volume.brick_stats(BRICK)
     occupancy = float(tf.classify_bricks(volume, BRICK).mean())
     if names is None:  # the registry (which imports this module) passes its names; others get the default pair
         names = ["naive", EDITING_INDEX, SPARSE_INDEX]

@@ -379,24 +379,11 @@ class Session:
         self._settled: tuple | None = None
 
     def update(self, req: RenderRequest) -> Snapshot:
-        if req.camera is not None:
-            self.camera = req.camera
-        if req.tf is not None:
-            self.tf = req.tf
-        if req.index is not None:
-            self.index = req.index
-        if req.width is not None:
-            self.width = req.width
-        if req.height is not None:
-            self.height = req.height
-        if req.mode is not None:
-            self.mode = req.mode
-        if req.iso is not None:
-            self.iso = req.iso
-        if req.clip is not None:
-            self.clip = req.clip
-        if req.time is not None:
-            self.time = req.time
+        # A message carries only what changed: every field it sets replaces the state's.
+        for name in ("camera", "tf", "index", "width", "height", "mode", "iso", "clip", "time"):
+            value = getattr(req, name)
+            if value is not None:
+                setattr(self, name, value)
         if req.labels is not None:
             self._apply_labels(req.labels)
         w, h = frame_size(self.width, self.height, req.preview)
