@@ -26,6 +26,7 @@ from .errors import (
 from .index import SpatialIndex, available_indices, build_index
 from .io import load_series, load_volume, save_volume
 from .series import VolumeSeries
+from .storage import BrickedVolume, MemoryBudgetError
 from .image import Image
 from .render import render
 from .io.particles import load_particles
@@ -48,6 +49,8 @@ def show(volume, tf=None, **kwargs):
 
 __all__ = [
     "BrickStats",
+    "BrickedVolume",
+    "MemoryBudgetError",
     "Camera",
     "FileFormatError",
     "Image",

@@ -159,6 +159,12 @@ def voxel_elements(volume: Volume, threshold: float = 0.1, resample: float = 1.0
         raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
     thr = unit_float(threshold, "threshold")
     r = _check_resample(resample)
+    data = volume.voxels()
+    if not isinstance(data, np.ndarray):
+        raise ParameterError(
+            f"volume: {volume.name} is bricked; voxel elements resample the whole grid and need a dense "
+            "volume (use brick elements, e.g. the BIH's 'ess' mode, or Volume(bricked.to_dense()))"
+        )
     v_lo, v_hi = (float(x) for x in volume.value_range)
     span = v_hi - v_lo if v_hi > v_lo else 1.0
     step = 1.0 / r
@@ -167,7 +173,7 @@ def voxel_elements(volume: Volume, threshold: float = 0.1, resample: float = 1.0
     # A small relative margin keeps values that equal the threshold up to rounding.
     v_thr = v_lo + thr * span - 1e-12 * span
     counts = np.zeros(gz, np.int64)
-    _count_voxels(volume.data, step, gx, gy, gz, v_lo, v_thr, counts)
+    _count_voxels(data, step, gx, gy, gz, v_lo, v_thr, counts)
     offsets = np.zeros(gz + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
     n = int(offsets[-1])
@@ -175,7 +181,7 @@ def voxel_elements(volume: Volume, threshold: float = 0.1, resample: float = 1.0
     hi = np.empty((n, 3), np.float64)
     density = np.empty(n, np.float64)
     grad = np.empty((n, 3), np.float64)
-    _fill_voxels(volume.data, step, gx, gy, gz, v_lo, span, v_thr, offsets, lo, hi, density, grad)
+    _fill_voxels(data, step, gx, gy, gz, v_lo, span, v_thr, offsets, lo, hi, density, grad)
     ext = np.maximum(np.array([nx, ny, nz], np.float64) - 1.0, 1.0)
     return Elements(lo, hi, density, grad, np.zeros(3), ext, "voxels",
                     {"threshold": thr, "resample": r, "grid_points": gx * gy * gz})

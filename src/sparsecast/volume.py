@@ -198,6 +198,15 @@ class Volume:
         """Read-only voxel array, shape ``(nz, ny, nx)``."""
         return self._data
 
+    def voxels(self, tf=None, *, mode: str = "dvr") -> np.ndarray:
+        """The voxels as the kernels read them: here the dense ``(nz, ny, nx)`` array.
+
+        A :class:`~sparsecast.storage.BrickedVolume` returns its page table and pool
+        instead, with every brick ``tf`` can see made resident first; renderers and
+        index builds call this rather than reading :attr:`data`.
+        """
+        return self._data
+
     @property
     def shape(self) -> tuple[int, int, int]:
         """Array shape ``(nz, ny, nx)``."""

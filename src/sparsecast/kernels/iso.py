@@ -26,8 +26,7 @@ from numba import njit
 from numba.extending import overload
 
 from .ray import lattice_range
-from .sample import gradient
-from .sampler import sample
+from .sampler import sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 __all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
@@ -111,7 +110,7 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
         x = ox + t * dx
         y = oy + t * dy
         z = oz + t * dz
-        gx, gy, gz = gradient(flat, nx, ny, nz, x, y, z)
+        gx, gy, gz = sample_gradient(flat, nx, ny, nz, x, y, z)
         cr, cg, cb = blinn_phong(cr, cg, cb, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
                                  wdx, wdy, wdz, shading)
     w = (1.0 - a) * colors[j, 3]
@@ -207,7 +206,7 @@ def iso_interval(
                     x = ox + (k * dt) * dx
                     y = oy + (k * dt) * dy
                     z = oz + (k * dt) * dz
-                    gx, gy, gz = gradient(flat, nx, ny, nz, x, y, z)
+                    gx, gy, gz = sample_gradient(flat, nx, ny, nz, x, y, z)
                     cr, cg, cb = blinn_phong(cr, cg, cb, gx * inv_spacing[0], gy * inv_spacing[1],
                                              gz * inv_spacing[2], wdx, wdy, wdz, shading)
                 w = (1.0 - a) * al

@@ -14,8 +14,7 @@ from typing import NamedTuple
 from numba import njit
 
 from .ray import lattice_range
-from .sample import gradient
-from .sampler import sample
+from .sampler import sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 
@@ -32,7 +31,7 @@ def _shade_sample(flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing
     Deliberately not inlined: keeping the six extra trilinear fetches out of the
     marching loop keeps that loop small (unshaded marching is the common case).
     """
-    gx, gy, gz = gradient(flat, nx, ny, nz, x, y, z)
+    gx, gy, gz = sample_gradient(flat, nx, ny, nz, x, y, z)
     return blinn_phong(
         r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
         wdx, wdy, wdz, shading,

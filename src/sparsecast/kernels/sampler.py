@@ -21,9 +21,11 @@ from typing import NamedTuple
 from numba import njit
 from numba.extending import overload
 
-from .sample import trilinear
+from .bricked import bricked_gradient, bricked_nearest, bricked_trilinear
+from .layout import layout_of
+from .sample import gradient, trilinear
 
-__all__ = ["Trilinear", "Nearest", "SAMPLERS", "sampler_for", "sample", "nearest"]
+__all__ = ["Trilinear", "Nearest", "SAMPLERS", "sampler_for", "sample", "sample_gradient", "nearest"]
 
 
 class Trilinear(NamedTuple):
@@ -62,15 +64,37 @@ def nearest(flat, nx, ny, nz, x, y, z):
 
 
 def sample(sampler, flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by overloads in jitted code
-    """The value at index-space point ``(x, y, z)`` as ``sampler`` reads it."""
+    """The value at index-space point ``(x, y, z)`` as ``sampler`` reads it from ``flat``
+    (a dense volume's 1-D view, or a :class:`~.bricked.BrickedVoxels`)."""
     raise NotImplementedError("sample is only callable from jitted code")
+
+
+def sample_gradient(flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by overloads in jitted code
+    """Central-difference gradient of the trilinear field at ``(x, y, z)`` (either layout)."""
+    raise NotImplementedError("sample_gradient is only callable from jitted code")
 
 
 @overload(sample, inline="always")
 def _sample(sampler, flat, nx, ny, nz, x, y, z):
     cls = getattr(sampler, "instance_class", None)
-    if cls is Trilinear:
+    layout = layout_of(flat)
+    if cls is Trilinear and layout == "dense":
         return lambda sampler, flat, nx, ny, nz, x, y, z: trilinear(flat, nx, ny, nz, x, y, z)
-    if cls is Nearest:
+    if cls is Nearest and layout == "dense":
         return lambda sampler, flat, nx, ny, nz, x, y, z: nearest(flat, nx, ny, nz, x, y, z)
+    if cls is Trilinear and layout == "bricked":
+        return lambda sampler, flat, nx, ny, nz, x, y, z: bricked_trilinear(flat, x, y, z)
+    if cls is Nearest and layout == "bricked":
+        return lambda sampler, flat, nx, ny, nz, x, y, z: bricked_nearest(flat, x, y, z)
     return None
+
+
+@overload(sample_gradient, inline="always")
+def _sample_gradient(flat, nx, ny, nz, x, y, z):
+    layout = layout_of(flat)
+    if layout == "dense":
+        return lambda flat, nx, ny, nz, x, y, z: gradient(flat, nx, ny, nz, x, y, z)
+    if layout == "bricked":
+        return lambda flat, nx, ny, nz, x, y, z: bricked_gradient(flat, x, y, z)
+    return None
+

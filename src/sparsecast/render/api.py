@@ -197,6 +197,8 @@ def render(
 
     # The iso modes skip bricks by a TF that is non-empty around the isovalues.
     classify = classification_tf(tf, mode, mode_marker.values) if mode != "dvr" else tf
+    # A bricked volume makes what this frame can see resident before any index reads it.
+    data = volume.voxels(classify, mode=mode)
     build_ms = 0.0
     build_jit_ms = 0.0
     if isinstance(index, str):
@@ -247,7 +249,6 @@ def render(
         sampler=sampler_for(tf.sampling), mode=mode_marker,
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
-    data = volume.data
     jit_ms = build_jit_ms + _warm_up(record, data, frame, init)
     rgba = np.empty((h, w, 4), np.float32)
     samples = np.empty((h, w), np.int32)
@@ -415,7 +416,7 @@ def _planes(volume: Volume, clip_planes) -> np.ndarray:
 _WARM: set[tuple] = set()
 
 
-def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
+def _warm_up(record, data, frame: Frame, init: np.ndarray) -> float:
     """Compile (or load from the on-disk cache) the driver for these argument types
     by rendering one pixel, so that ``stats["ms"]`` never includes JIT time.
 
@@ -424,7 +425,8 @@ def _warm_up(record, data: np.ndarray, frame: Frame, init: np.ndarray) -> float:
     # The driver specialises on the record, the voxel dtype, the initial-RGBA path and the
     # frame's sampler and mode markers (nearest labels, iso): each is its own compilation,
     # so an iso frame after a DVR one with the same index must warm up too.
-    key = (type(record), data.dtype.str, init.shape[0] > 0, type(frame.sampler), type(frame.mode))
+    dtype = data.dtype.str if isinstance(data, np.ndarray) else (type(data), data.pool.dtype.str)
+    key = (type(record), dtype, init.shape[0] > 0, type(frame.sampler), type(frame.mode))
     if key in _WARM:
         return 0.0
     t0 = time.perf_counter()

@@ -30,6 +30,7 @@ from ..index.interval import coalesces, integrate, make_scratch, next_interval, 
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import index_space_ray
 from ..kernels.ray import clip_lattice, clip_planes
+from ..kernels.layout import voxel_view
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
 
@@ -46,8 +47,9 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
         Tile number in the output rectangle (row-major, see :mod:`.kernels.tiles`).
     record : NamedTuple
         The index's traversal record (:mod:`sparsecast.index.interval`).
-    data : (nz, ny, nx) ndarray
-        Voxels, C-contiguous.
+    data : (nz, ny, nx) ndarray or BrickedVoxels
+        Voxels: a C-contiguous array, or a bricked volume's page table and pool
+        (:mod:`sparsecast.kernels.bricked`); each compiles its own loop.
     frame : Frame
         See :class:`sparsecast.render.frame.Frame`.
     init : (h, w, 4) float32 or (0, 0, 4)
@@ -58,7 +60,6 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     out_samples, out_nonempty : (h, w) int32
         Samples taken, and samples of non-zero opacity, per pixel.
     """
-    nz, ny, nx = data.shape
     h, w = out_samples.shape
     has_init = init.shape[0] > 0
     merge = coalesces(record)
@@ -68,7 +69,8 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     scratch = borrowed(owned_scratch)
     record = borrowed(record)
     frame = borrowed(frame)
-    flat = borrowed(data.reshape(nz * ny * nx))  # a view of the C-ordered voxels
+    flat, nx, ny, nz = voxel_view(data)  # a dense volume's 1-D view, or a bricked one's pages
+    flat = borrowed(flat)
     out_rgba = borrowed(out_rgba)
     out_samples = borrowed(out_samples)
     out_nonempty = borrowed(out_nonempty)

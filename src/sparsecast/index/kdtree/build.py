@@ -76,7 +76,7 @@ class CellOccupancy:
         bmap = np.full(flags.shape, -1, np.int32)
         bmap.ravel()[bricks] = np.arange(bricks.size, dtype=np.int32)
         occ = np.zeros((bricks.size, 8, 8, 8), np.uint8)
-        occupancy.classify_cells(volume.data, bricks, stats.vmin.ravel()[bricks], stats.vmax.ravel()[bricks],
+        occupancy.classify_cells(volume.voxels(tf), bricks, stats.vmin.ravel()[bricks], stats.vmax.ravel()[bricks],
                          tf.prefix, float(tf.value_range[0]), float(tf.scale), ncz, ncy, ncx, occ)
         self.phases["classify"] = (time.perf_counter() - t0) * 1e3
         self._build_svts((ncz, ncy, ncx), bmap, occ)

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...kernels.classify import entry_span, range_is_empty
+from ...kernels.layout import row_offset, voxel_parts
 
 SVT_BRICK = 32
 #: cells per brick edge of the coarse classification pre-pass (Volume.brick_stats)
@@ -57,10 +58,11 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
     ``bricks[i]`` (cells outside the volume stay 0). ``bvmin/bvmax[i]`` is that
     brick's apron range: when every TF entry it spans is opaque, every cell (whose
     range lies inside) is occupied and no voxel is read. Otherwise each cell's range is reduced axis by axis (x, y, z) over its
-    4-voxel windows.
+    4-voxel windows. ``data`` is a dense ``(nz, ny, nx)`` array or a bricked volume's
+    :class:`~sparsecast.kernels.bricked.BrickedVoxels` with those bricks resident
+    (storage bricks a multiple of 8 cells, so each 8^3 brick's window lies in one slot).
     """
-    nz, ny, nx = data.shape
-    flat = data.reshape(nz * ny * nx)
+    flat, pages, nx, ny, nz, snbx, snby, shift = voxel_parts(data)  # plain arrays: prange takes no records
     B = CLASSIFY_BRICK
     nby = -(-ncy // B)
     nbx = -(-ncx // B)
@@ -98,7 +100,9 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
             ly = wy1 - wy0 + 1
             for zz in range(lz):
                 for yy in range(ly):
-                    base = ((wz0 + zz) * ny + (wy0 + yy)) * nx
+                    # The row of voxels, from the dense array or the brick's slot
+                    # (the window lies in the slot of the storage brick of cell (cz0, cy0, cx0)).
+                    base = row_offset(pages, shift, snbx, snby, nx, ny, cz0, cy0, cx0, wz0 + zz, wy0 + yy)
                     for cx in range(cx0, cx1):
                         i0 = max(cx - 1, 0)
                         i1 = min(cx + 2, nx - 1)

@@ -101,10 +101,15 @@ def vote_voxels(volume, tf, brick: int) -> np.ndarray:
     interpolated between two voxels can hit a narrow TF peak that neither value
     does.) A label TF refines it with the volume's per-brick label sets, as there.
     """
+    voxels = volume.voxels(tf)
+    if not isinstance(voxels, np.ndarray):
+        # A bricked volume's statistics were reduced from its voxels when it was
+        # stored; a fresh pass would read the source again for the same answer.
+        return vote_bricks(volume, tf, brick)
     nbz, nby, nbx = brick_grid_shape(volume.shape, brick)
     vmin = np.empty((nbz, nby, nbx), np.float64)
     vmax = np.empty((nbz, nby, nbx), np.float64)
-    brick_minmax(volume.data, brick, nbz, nby, nbx, vmin, vmax)
+    brick_minmax(voxels, brick, nbz, nby, nbx, vmin, vmax)
     occ = K.classify_bricks(tf.prefix, float(tf.value_range[0]), tf.scale, vmin.ravel(), vmax.ravel())
     return tf.refine_bricks(volume, brick, occ.reshape(nbz, nby, nbx)).ravel()
 
