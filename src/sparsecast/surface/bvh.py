@@ -19,8 +19,9 @@ from ._bvh_kernels import disc_leaf_code
 from .index import SurfaceIndex, empty_atlas_arrays
 from .mesh import PointCloud, TriangleMesh
 from .sah import BuildTree, build_sah
+from .wide import collapse_tree
 
-__all__ = ["build_bvh", "triangle_tree", "triangle_bvh_arrays", "disc_boxes"]
+__all__ = ["build_bvh", "LAYOUTS", "triangle_tree", "triangle_bvh_arrays", "disc_boxes"]
 
 
 def triangle_tree(tris: np.ndarray, max_leaf: int = 4, bins: int = 16) -> BuildTree:
@@ -47,7 +48,12 @@ def disc_boxes(centers: np.ndarray, normals: np.ndarray, radii: np.ndarray) -> t
     return centers - half, centers + half
 
 
-def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: int = 16) -> SurfaceIndex:
+#: traversal layouts of :func:`build_bvh`
+LAYOUTS = ("wide", "binary")
+
+
+def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: int = 16,
+              layout: str | None = None) -> SurfaceIndex:
     """Exact BVH of a triangle mesh, or of a point cloud's discs (binned SAH).
 
     Parameters
@@ -59,6 +65,10 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
         1..32 primitives per leaf.
     bins : int
         SAH bins per axis, 2..256.
+    layout : {"wide", "binary"}, optional
+        Traversal layout: the 4-wide BVH (:mod:`sparsecast.surface.wide`; the
+        default for meshes) or the binary one (the default, and the only one, for
+        point clouds). Both come from the same build tree.
     """
     if not isinstance(surface, (TriangleMesh, PointCloud)):
         raise ParameterError(f"mesh: expected a TriangleMesh or PointCloud (see sparsecast.io.meshes.load_mesh, "
@@ -67,7 +77,12 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
         raise ParameterError(f"max_leaf: expected 1..32 primitives, got {max_leaf}")
     if not 2 <= bins <= 256:
         raise ParameterError(f"bins: expected 2..256, got {bins}")
+    if layout is not None and layout not in LAYOUTS:
+        raise ParameterError(f"layout: expected one of {', '.join(LAYOUTS)}, got {layout!r}")
     if isinstance(surface, PointCloud):
+        if layout == "wide":
+            raise ParameterError(f"layout: the wide BVH holds triangles; a point cloud ({surface.source!r}) "
+                                 "is ray cast as discs in the binary layout (layout='binary')")
         return _build_disc_bvh(surface, max_leaf, bins)
     mesh = surface
     t0 = time.perf_counter()
@@ -75,19 +90,27 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
     t1 = time.perf_counter()
     tree = triangle_tree(tris, max_leaf, bins)
     t2 = time.perf_counter()
-    (nb, nchild, ncount), order, depth = tree.flatten(), tree.ids, tree.depth
+    vnormals = mesh.vertex_normals.astype(np.float32)
+    if layout == "binary":
+        (nb, nchild, ncount), order = tree.flatten(), tree.ids
+        arrays = dict(node_bounds=nb, node_child=nchild, node_count=ncount,
+                      tris=np.ascontiguousarray(tris[order]), tri_face=order,
+                      faces=np.ascontiguousarray(mesh.faces[order]), depth=tree.depth)
+    else:
+        wide = collapse_tree(tree, tris)
+        # The wide leaves name mesh faces: shading reads the mesh's own corner indices.
+        arrays = dict(node_bounds=np.zeros((0, 2, 3), np.float32), node_child=np.zeros(0, np.int32),
+                      node_count=np.zeros(0, np.int32), tris=np.zeros((0, 3, 3), np.float32),
+                      tri_face=np.zeros(0, np.int32), faces=np.ascontiguousarray(mesh.faces, dtype=np.int32),
+                      depth=tree.depth, wide=wide)
     t3 = time.perf_counter()
-    index = SurfaceIndex(
-        kind="bvh", source=mesh, node_bounds=nb, node_child=nchild, node_count=ncount,
-        tris=np.ascontiguousarray(tris[order]), tri_face=order.astype(np.int32),
-        faces=np.ascontiguousarray(mesh.faces[order]), vnormals=mesh.vertex_normals.astype(np.float32),
-        depth=int(depth), **empty_atlas_arrays(),
+    return SurfaceIndex(
+        kind="bvh", source=mesh, vnormals=vnormals, **arrays, **empty_atlas_arrays(),
         build={"build_ms": (time.perf_counter() - t0) * 1e3,
                "phase_prepare_ms": (t1 - t0) * 1e3, "phase_sah_ms": (t2 - t1) * 1e3,
                "phase_flatten_ms": (t3 - t2) * 1e3, "max_leaf": max_leaf, "bins": bins,
-               "threads": tree.threads},
+               "threads": tree.threads, "layout": layout or "wide"},
     )
-    return index
 
 
 def _build_disc_bvh(cloud: PointCloud, max_leaf: int, bins: int) -> SurfaceIndex:
