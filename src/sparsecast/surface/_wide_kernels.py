@@ -71,15 +71,18 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
                      st_node, st_t, lane_t):
     """Nearest triangle hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (8,) float64.
 
+    ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
+    (:attr:`.wide.WideBVH.nodes`): boxes at ``4 row + c``, children at ``24 + c``.
+
     Returns ``(t, nx, ny, nz, face, -1, a, b)`` as :func:`._bvh_kernels.closest_hit`
     (``t = inf`` on a miss; unit shading normal; barycentrics ``a, b`` of
     vertices 1 and 2).
     """
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
-    # Near / far rows of the box per axis, from the direction's signs.
-    nxr, fxr = (0, 3) if ix >= 0.0 else (3, 0)
-    nyr, fyr = (1, 4) if iy >= 0.0 else (4, 1)
-    nzr, fzr = (2, 5) if iz >= 0.0 else (5, 2)
+    # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
+    nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
+    nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
+    nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
     onx, ofx = slab_origins(ox, dx)
     ony, ofy = slab_origins(oy, dy)
     onz, ofz = slab_origins(oz, dz)
@@ -112,10 +115,10 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
         if node >= 0:
             sp0 = sp
             for c in range(4):
-                tn = max(max((box[node, nxr, c] - onx) * ix, (box[node, nyr, c] - ony) * iy),
-                         max((box[node, nzr, c] - onz) * iz, t_min))
-                tf = min(min((box[node, fxr, c] - ofx) * ix, (box[node, fyr, c] - ofy) * iy),
-                         (box[node, fzr, c] - ofz) * iz) * ROBUST
+                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
+                         max((box[node, nzr + c] - onz) * iz, t_min))
+                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
+                         (box[node, fzr + c] - ofz) * iz) * ROBUST
                 lane_t[c] = tn if tn <= min(tf, best) else math.inf
             for c in range(4):
                 t = lane_t[c]
@@ -127,7 +130,7 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
                     st_node[j] = st_node[j - 1]
                     st_t[j] = st_t[j - 1]
                     j -= 1
-                st_node[j] = child[node, c]
+                st_node[j] = child[node, 24 + c]
                 st_t[j] = t
                 sp += 1
             continue

@@ -123,7 +123,7 @@ class SurfaceIndex:
         (unit directions) into ``out = (t (n,), normals (n, 3), face (n,), tile (n,), uv (n, 2))``."""
         if self.wide is not None:
             w = self.wide
-            return cast_rays_wide, (w.box, w.child, w.tri4, w.face4, self.faces, self.vnormals,
+            return cast_rays_wide, (*w.kernel_args(), self.faces, self.vnormals,
                                     origins, dirs, t_min, t_max, w.stack_size, *out)
         return cast_rays, (*self.kernel_args(), origins, dirs, t_min, t_max, self.depth + 2,
                            footprint[0], footprint[1], self.mip_levels, *out)
@@ -133,7 +133,7 @@ class SurfaceIndex:
         (:meth:`sparsecast.Camera.ray_params`) into per-pixel ``out`` (as :meth:`ray_call`'s, (H, W, ...))."""
         if self.wide is not None:
             w = self.wide
-            return cast_primary_wide, (w.box, w.child, w.tri4, w.face4, self.faces, self.vnormals,
+            return cast_primary_wide, (*w.kernel_args(), self.faces, self.vnormals,
                                        params, width, height, w.stack_size, *out)
         return cast_primary, (*self.kernel_args(), params, width, height, self.depth + 2, self.mip_levels, *out)
 
@@ -159,7 +159,7 @@ class SurfaceIndex:
         out = {
             "kind": self.kind,
             "layout": self.layout,
-            "nodes": int(len(c)) if w is None else int(len(w.child)),
+            "nodes": int(len(c)) if w is None else int(len(w.nodes)),
             "triangle_leaves": int((c > 0).sum()) if w is None else w.n_leaves,
             "tile_leaves": int((c == TILE_LEAF).sum()),
             "triangles": int(len(self.tris)) if w is None else int(np.count_nonzero(w.face4 >= 0)),

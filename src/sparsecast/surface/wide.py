@@ -27,11 +27,10 @@ class WideBVH:
 
     Attributes
     ----------
-    box : (n, 6, 4) float32
-        Children's boxes, SoA: ``box[k, a, c]`` is the min corner's coordinate
-        ``a`` of child ``c`` of node ``k``, ``box[k, 3 + a, c]`` the max corner's.
-    child : (n, 4) int32
-        Node index (``>= 0``) or leaf code (see :mod:`._wide_build_kernels`).
+    nodes : (n, 32) float32
+        One node per 128 bytes, on 64-byte boundaries (two cache lines):
+        ``nodes[k, :24]`` the children's boxes as :attr:`box` (n, 6, 4),
+        ``nodes[k, 24:28]`` the int32 bits of :attr:`child` (n, 4), then padding.
     tri4 : (p, 9, 4) float32
         Leaf triangles in packets of four: ``tri4[p, 3 v + a, lane]``.
     face4 : (p, 4) int32
@@ -42,12 +41,26 @@ class WideBVH:
         The box of every triangle.
     """
 
-    box: np.ndarray
-    child: np.ndarray
+    nodes: np.ndarray
     tri4: np.ndarray
     face4: np.ndarray
     depth: int
     root: np.ndarray
+
+    @property
+    def box(self) -> np.ndarray:
+        """(n, 6, 4) float32 view: ``box[k, a, c]`` is the min corner's coordinate ``a`` of
+        child ``c`` of node ``k``, ``box[k, 3 + a, c]`` the max corner's (SoA)."""
+        return self.nodes[:, :24].reshape(-1, 6, 4)
+
+    @property
+    def child(self) -> np.ndarray:
+        """(n, 4) int32 view: node index (``>= 0``) or leaf code (:mod:`._wide_build_kernels`)."""
+        return self.nodes.view(np.int32)[:, 24:28]
+
+    def kernel_args(self) -> tuple:
+        """The arrays the wide traversal kernels take: the nodes as float32 and as int32, the packets."""
+        return self.nodes, self.nodes.view(np.int32), self.tri4, self.face4
 
     @property
     def stack_size(self) -> int:
@@ -59,7 +72,7 @@ class WideBVH:
 
     def nbytes(self) -> dict[str, int]:
         """Bytes of the nodes and of the triangle packets."""
-        return {"nodes": int(self.box.nbytes + self.child.nbytes),
+        return {"nodes": int(self.nodes.nbytes),
                 "triangles": int(self.tri4.nbytes + self.face4.nbytes)}
 
 
@@ -74,4 +87,16 @@ def collapse_tree(tree: BuildTree, tris: np.ndarray) -> WideBVH:
     n_inner = int(np.count_nonzero(used & (tree.count == 0)))
     box, child, tri4, face4, depth = collapse(tree.bounds, tree.first, tree.count, tree.ids, tris,
                                               max(n_inner, 1), n_packets)
-    return WideBVH(box, child, tri4, face4, int(depth), tree.bounds[0].copy())
+    return WideBVH(_pack_nodes(box, child), tri4, face4, int(depth), tree.bounds[0].copy())
+
+
+def _pack_nodes(box: np.ndarray, child: np.ndarray) -> np.ndarray:
+    """Boxes (n, 6, 4) and children (n, 4) as 128-byte nodes aligned to 64 bytes."""
+    n = len(box)
+    buf = np.empty(n * 32 + 16, np.float32)
+    skip = (-buf.ctypes.data % 64) // 4
+    nodes = buf[skip:skip + n * 32].reshape(n, 32)
+    nodes[:, :24] = box.reshape(n, 24)
+    nodes.view(np.int32)[:, 24:28] = child
+    nodes[:, 28:] = 0.0
+    return nodes
