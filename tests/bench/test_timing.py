@@ -180,3 +180,28 @@ def test_embree_build_includes_the_first_cast(monkeypatch):
     assert build["ms"] == pytest.approx(build["copy_ms"] + build["first_cast_ms"])
     renders = [r for r in recs if r["phase"] in ("render", "render_diffuse")]
     assert len(renders) == 2 and all(len(r["ms_runs"]) == 3 for r in renders)
+
+
+def test_surface_section_reports_both_layouts_per_cpu_second():
+    from sparsecast.bench import surface
+    from sparsecast.surface.mesh import icosphere
+
+    recs = []
+    surface._bench_mesh("sphere", icosphere(3), 24, 16, 1, 0, lambda **kw: recs.append(kw))
+    by = {(r["method"], r["phase"]): r for r in recs}
+    for method in ("bvh", "bvh-binary"):
+        build, render = by[(method, "build")], by[(method, "render")]
+        assert build["layout"] == method.replace("bvh-", "").replace("bvh", "wide") and build["threads"] >= 1
+        assert render["rays"] == 24 * 16 and render["threads"] >= 1
+        assert render["mrays_cpu_s"] == pytest.approx(render["rays"] / render["cpu_ms"] / 1e3)
+        assert by[(method, "render_diffuse")]["mrays_cpu_s"] > 0
+    # The exact layouts see the same hits.
+    assert by[("bvh-binary", "render")]["hits"] == by[("bvh", "render")]["hits"]
+    assert by[("bvh-binary", "render")]["hit_mismatch_pct"] == 0.0
+    try:
+        import open3d  # noqa: F401
+    except Exception:
+        skipped = by[("embree", "skipped")]
+        assert "open3d" in skipped["reason"] and "pip install" in skipped["reason"]
+    else:
+        assert by[("embree", "render")]["mrays_cpu_s"] > 0

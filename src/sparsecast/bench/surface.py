@@ -5,20 +5,25 @@ midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
 in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
 
 - ``phase="load"``: reading (and generating) the mesh;
-- ``phase="build"`` (Tables 1-2): the exact BVH and the RBVH at Q0-Q4 (SAH
+- ``phase="build"`` (Tables 1-2): the exact BVH (``bvh``: the 4-wide layout;
+  ``bvh-binary``: the same build tree in the binary layout) and the RBVH at Q0-Q4 (SAH
   splits) plus Q2 with median splits and Q2 with 3 mip levels: build ms, nodes, tiles, texels, bytes of
   nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
   triangles) from the same run;
 - ``phase="render"`` (Table 3, primary rays) and ``phase="render_diffuse"``
   (Table 4, one cosine-distributed diffuse ray per primary hit, the same rays for
-  every method): ms, ``mrays_s``, ``speedup`` over the BVH in the same run; for
+  every method): ms, ``mrays_s``, ``cpu_ms`` and ``mrays_cpu_s`` (rays per
+  CPU-second of all threads: the fair figure beside a peer that traces on one
+  thread), ``threads``, ``speedup`` over the BVH in the same run; for
   the RBVH also ``psnr`` of the shaded image against the BVH's, mean/max depth
   error in % of the bounding-box diagonal, and the share of pixels whose hit/miss
   differs;
 - the Embree peer through Open3D's ``RaycastingScene`` when it imports (a
   ``phase="skipped"`` record with the reason otherwise); its ``build`` is the
   triangle copy plus the first cast of the primary rays (``copy_ms`` +
-  ``first_cast_ms``), since Open3D builds Embree's BVH lazily in the first cast.
+  ``first_cast_ms``), since Open3D builds Embree's BVH lazily in the first cast;
+  its renders record the same wall and CPU figures (``cores_busy`` = CPU / wall
+  says how many threads it kept busy).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import numba
 import numpy as np
 
 from ..camera import Camera
@@ -35,9 +41,9 @@ from ..surface.index import SurfaceIndex
 from ..surface.mesh import TriangleMesh, icosphere, subdivide, z_up
 from ..surface.render import cast_camera, shade
 from ..surface.secondary import cosine_directions, facing
-from .shared_data import find_shared_data
 from .images import psnr
-from .timing import median_ms
+from .shared_data import find_shared_data
+from .timing import median_ms, timed_call
 
 __all__ = ["run", "MESHES", "DEFAULT_DATASETS", "QUALITIES"]
 
@@ -81,8 +87,23 @@ def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], obj
     return RayCast(index, o, d).run
 
 
+def _timed(fn: Callable[[], object], repeat: int, warmup: int) -> tuple[float, list[float], float, object]:
+    """Median wall ms, the wall runs, the median CPU ms (all threads) of ``fn``, its last result."""
+    for _ in range(warmup):
+        fn()
+    runs = [timed_call(fn) for _ in range(max(1, repeat))]
+    return (float(np.median([r[1] for r in runs])), [r[1] for r in runs], float(np.median([r[2] for r in runs])),
+            runs[-1][0])
+
+
+def _rates(rays: int, ms: float, cpu_ms: float) -> dict:
+    """Rays per second (wall) and per CPU-second, and the threads our kernels ran on."""
+    return {"mrays_s": rays / ms / 1e3, "cpu_ms": cpu_ms, "mrays_cpu_s": rays / max(cpu_ms, 1e-9) / 1e3,
+            "threads": numba.get_num_threads(), "cores_busy": round(cpu_ms / ms, 2) if ms > 0 else None}
+
+
 def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: int, warmup: int):
-    """Median kernel ms of the primary rays (output allocation excluded), the runs, the hits."""
+    """Median kernel ms of the primary rays (output allocation excluded), the runs, median CPU ms, the hits."""
     cast_camera(index, cam, 8, 8)  # compile / load outside the timing
     kernel_ms: list[float] = []
 
@@ -91,9 +112,9 @@ def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: 
         kernel_ms.append(h.ms)
         return h
 
-    _, _, hits = median_ms(once, repeat, warmup)
+    _, _, cpu_ms, hits = _timed(once, repeat, warmup)
     runs = kernel_ms[warmup:]
-    return float(np.median(runs)), runs, hits
+    return float(np.median(runs)), runs, cpu_ms, hits
 
 
 def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, repeat: int, warmup: int,
@@ -102,7 +123,8 @@ def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, r
         import open3d as o3d  # an optional peer, not a dependency
     except Exception as exc:  # ImportError, or a missing system library behind it
         record(dataset=dataset, method="embree", phase="skipped", ms=None,
-               reason=f"open3d does not import: {type(exc).__name__}: {exc}")
+               reason=f"open3d (Embree's Python binding here) does not import: {type(exc).__name__}: {exc}; "
+                      "pip install open3d to time Embree beside the BVH")
         return
     o, d = cam.rays(width, height)
     prim = o3d.core.Tensor(np.concatenate([o, d], -1).reshape(-1, 6).astype(np.float32))
@@ -120,9 +142,11 @@ def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, r
            first_cast_ms=(t2 - t1) * 1e3, triangles=mesh.n_triangles)
     for phase, rays, n, ref in (("render", prim, width * height, ref_ms[0]),
                                 ("render_diffuse", sec, len(diffuse[0]), ref_ms[1])):
-        ms, runs, _ = median_ms(lambda: scene.cast_rays(rays), repeat, warmup)
+        ms, runs, cpu_ms, _ = _timed(lambda: scene.cast_rays(rays), repeat, warmup)
+        rates = _rates(n, ms, cpu_ms)
+        rates["threads"] = None  # Open3D's own choice: cores_busy tells
         record(dataset=dataset, method="embree", phase=phase, ms=ms, ms_runs=runs, rays=n,
-               mrays_s=n / ms / 1e3, speedup=ref / ms, width=width, height=height)
+               speedup=ref / ms, width=width, height=height, **rates)
 
 
 def run(datasets: list[str] | None, *, width: int, height: int, repeat: int, warmup: int,
@@ -166,12 +190,14 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
                bytes_nodes=s["bytes_nodes"], bytes_triangles=s["bytes_triangles"],
                bytes_atlas=s["bytes_atlas"], bytes_shading=s["bytes_shading"],
                phases={k: v for k, v in s.items() if k.startswith("phase_")}, triangles=mesh.n_triangles,
-               **extra)
+               threads=s.get("threads"), **extra)
         return index
 
-    bvh = build_and_record("bvh", lambda: build_bvh(mesh))
+    bvh = build_and_record("bvh", lambda: build_bvh(mesh), layout="wide")
     bvh_bytes = bvh.stats()["bytes_nodes"] + bvh.stats()["bytes_triangles"]
     indices: dict[str, SurfaceIndex] = {"bvh": bvh}
+    indices["bvh-binary"] = build_and_record("bvh-binary", lambda: build_bvh(mesh, layout="binary"),
+                                             layout="binary")
     for q in QUALITIES:
         idx = build_and_record(f"rbvh-{q}", lambda q=q: build_rbvh(mesh, q), quality=q, split="sah")
         indices[f"rbvh-{q}"] = idx
@@ -186,7 +212,7 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
     _mem_ratio(mip, bvh_bytes, record, name, "rbvh-Q2-mip3")
 
     # Primary rays: the exact image first (reference for PSNR, depth error, diffuse rays).
-    ref_ms, ref_runs, ref = _primary(bvh, cam, width, height, repeat, warmup)
+    ref_ms, ref_runs, ref_cpu, ref = _primary(bvh, cam, width, height, repeat, warmup)
     dist = float(np.linalg.norm(cam.eye - mesh.center))
     depth_range = (max(dist - diag / 2, 0.0), dist + diag / 2)
     ref_img = shade(ref, cam, "shaded", depth_range)
@@ -194,33 +220,33 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
     n_diffuse = len(diffuse[0])
     cast_ref = _cast(bvh, *diffuse)
     cast_ref()  # compile outside the timing
-    ref_d_ms, ref_d_runs, _ = median_ms(cast_ref, repeat, warmup)
+    ref_d_ms, ref_d_runs, ref_d_cpu, _ = _timed(cast_ref, repeat, warmup)
     rays = width * height
     record(dataset=name, method="bvh", phase="render", ms=ref_ms, ms_runs=ref_runs, rays=rays,
-           hits=int(np.isfinite(ref.t).sum()), mrays_s=rays / ref_ms / 1e3, speedup=1.0,
-           width=width, height=height, view=list(VIEW))
+           hits=int(np.isfinite(ref.t).sum()), speedup=1.0, width=width, height=height, view=list(VIEW),
+           **_rates(rays, ref_ms, ref_cpu))
     record(dataset=name, method="bvh", phase="render_diffuse", ms=ref_d_ms, ms_runs=ref_d_runs, rays=n_diffuse,
-           mrays_s=n_diffuse / ref_d_ms / 1e3, speedup=1.0, width=width, height=height, view=list(VIEW))
+           speedup=1.0, width=width, height=height, view=list(VIEW), **_rates(n_diffuse, ref_d_ms, ref_d_cpu))
     both_ref = np.isfinite(ref.t)
     for method, idx in indices.items():
         if method == "bvh":
             continue
-        ms, runs, hits = _primary(idx, cam, width, height, repeat, warmup)
+        ms, runs, cpu_ms, hits = _primary(idx, cam, width, height, repeat, warmup)
         img = shade(hits, cam, "shaded", depth_range)
         both = both_ref & np.isfinite(hits.t)
         err = np.abs(hits.t[both] - ref.t[both]) / diag * 100.0
         record(dataset=name, method=method, phase="render", ms=ms, ms_runs=runs, rays=rays,
-               hits=int(np.isfinite(hits.t).sum()), mrays_s=rays / ms / 1e3, speedup=ref_ms / ms,
+               hits=int(np.isfinite(hits.t).sum()), speedup=ref_ms / ms, **_rates(rays, ms, cpu_ms),
                psnr=psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
                depth_err_max_pct=float(err.max()) if err.size else None,
                hit_mismatch_pct=float(np.mean(np.isfinite(hits.t) != both_ref) * 100.0),
                width=width, height=height, view=list(VIEW))
         cast_d = _cast(idx, *diffuse)
         cast_d()
-        d_ms, d_runs, _ = median_ms(cast_d, repeat, warmup)
+        d_ms, d_runs, d_cpu, _ = _timed(cast_d, repeat, warmup)
         record(dataset=name, method=method, phase="render_diffuse", ms=d_ms, ms_runs=d_runs, rays=n_diffuse,
-               mrays_s=n_diffuse / d_ms / 1e3, speedup=ref_d_ms / d_ms, width=width, height=height,
-               view=list(VIEW))
+               speedup=ref_d_ms / d_ms, width=width, height=height, view=list(VIEW),
+               **_rates(n_diffuse, d_ms, d_cpu))
     _embree(mesh, cam, width, height, diffuse, repeat, warmup, record, name, (ref_ms, ref_d_ms))
 
 

@@ -23,6 +23,7 @@ from numba import njit, prange
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
 from ._rbvh_kernels import tile_hit, tile_normal
+from ._wide_kernels import slab_origins
 
 #: ``node_count`` of a tile leaf
 TILE_LEAF = -1
@@ -44,16 +45,20 @@ def _inv(d):
 
 
 @njit(cache=True, inline="always")
-def ray_box(nb, k, ox, oy, oz, ix, iy, iz, t_min, t_max):
-    """Entry distance of the ray into node box ``k``, or ``inf`` when it misses."""
-    a = (nb[k, 0, 0] - ox) * ix
-    b = (nb[k, 1, 0] - ox) * ix
+def ray_box(nb, k, o, ix, iy, iz, t_min, t_max):
+    """Entry distance of the ray into node box ``k``, or ``inf`` when it misses.
+
+    ``o = (lox, loy, loz, hix, hiy, hiz)``: the origin for the boxes' min and max
+    planes (:func:`._wide_kernels.slab_origins`: a ray in a face plane is inside).
+    """
+    a = (nb[k, 0, 0] - o[0]) * ix
+    b = (nb[k, 1, 0] - o[3]) * ix
     tn, tf = min(a, b), max(a, b)
-    a = (nb[k, 0, 1] - oy) * iy
-    b = (nb[k, 1, 1] - oy) * iy
+    a = (nb[k, 0, 1] - o[1]) * iy
+    b = (nb[k, 1, 1] - o[4]) * iy
     tn, tf = max(tn, min(a, b)), min(tf, max(a, b))
-    a = (nb[k, 0, 2] - oz) * iz
-    b = (nb[k, 1, 2] - oz) * iz
+    a = (nb[k, 0, 2] - o[2]) * iz
+    b = (nb[k, 1, 2] - o[5]) * iz
     tn, tf = max(tn, min(a, b)), min(tf, max(a, b))
     tn = max(tn, t_min)
     if tn <= min(tf, t_max):
@@ -133,13 +138,18 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
     or texel coordinates of a tile hit (0 for a disc).
     """
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    # With d = 0 the huge inverse is positive: min planes are near, max planes far.
+    lx, hx = slab_origins(ox, dx)
+    ly, hy = slab_origins(oy, dy)
+    lz, hz = slab_origins(oz, dz)
+    ob = (lx, ly, lz, hx, hy, hz)
     best = t_max
     face = -1
     best_k = -1
     best_disc = -1
     tile = -1
     ha = hb = 0.0
-    if ray_box(nb, 0, ox, oy, oz, ix, iy, iz, t_min, best) == math.inf:
+    if ray_box(nb, 0, ob, ix, iy, iz, t_min, best) == math.inf:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     sp = 0
     node = 0
@@ -147,8 +157,8 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         c = ncount[node]
         if c == 0:
             left = nchild[node]
-            tl = ray_box(nb, left, ox, oy, oz, ix, iy, iz, t_min, best)
-            tr = ray_box(nb, left + 1, ox, oy, oz, ix, iy, iz, t_min, best)
+            tl = ray_box(nb, left, ob, ix, iy, iz, t_min, best)
+            tr = ray_box(nb, left + 1, ob, ix, iy, iz, t_min, best)
             if tl != math.inf or tr != math.inf:
                 if tl <= tr:
                     node = left
@@ -176,7 +186,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         else:
             k = nchild[node]
             if n_levels > 1:
-                k = _mip_tile(k, ray_box(nb, node, ox, oy, oz, ix, iy, iz, t_min, best), fp0, spread,
+                k = _mip_tile(k, ray_box(nb, node, ob, ix, iy, iz, t_min, best), fp0, spread,
                               n_levels, tile_proj, tile_rect.shape[0] // n_levels)
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
             if t < best:
@@ -186,7 +196,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         while sp > 0:
             sp -= 1
             node = stack[sp]
-            if ray_box(nb, node, ox, oy, oz, ix, iy, iz, t_min, best) != math.inf:
+            if ray_box(nb, node, ob, ix, iy, iz, t_min, best) != math.inf:
                 found = True
                 break
         if not found:

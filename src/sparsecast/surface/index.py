@@ -2,8 +2,9 @@
 
 A :class:`SurfaceIndex` is a BVH whose leaves are triangles or discs (exact) or
 height-field tiles in an atlas (approximate); the exact BVH has no tiles, the
-hybrid RBVH has both. One traversal kernel serves every kind
-(:func:`._bvh_kernels.closest_hit`).
+hybrid RBVH has both. In the binary layout one traversal kernel serves every
+kind (:func:`._bvh_kernels.closest_hit`); the exact BVH of a mesh is by default
+in the 4-wide layout instead (:mod:`.wide`, traversed by :mod:`._wide_kernels`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError
-from ._bvh_kernels import TILE_LEAF, cast_rays
+from ._bvh_kernels import TILE_LEAF, cast_primary, cast_rays
+from ._wide_kernels import cast_primary_wide, cast_rays_wide
+from .wide import WideBVH
 
 __all__ = ["SurfaceIndex", "Hits", "RayCast", "raycast", "empty_atlas_arrays"]
 
@@ -40,12 +43,14 @@ class SurfaceIndex:
         ``"bvh"`` (exact) or ``"rbvh"`` (rasterized, possibly hybrid).
     node_bounds : (n, 2, 3) float32
     node_child, node_count : (n,) int32
-        See :mod:`._bvh_kernels` for the encoding.
+        The binary layout; see :mod:`._bvh_kernels` for the encoding. Empty
+        (``n = 0``) when the index is in the wide layout (``wide``).
     tris : (k, 3, 3) float32
         Triangles of the triangle leaves in leaf order; ``tri_face`` maps them to
-        mesh faces (for normals).
+        mesh faces (for normals). Empty in the wide layout.
     faces, vnormals : (k, 3) int32 and float32 normals
-        Shading: leaf triangle ``k`` has corner normals ``vnormals[faces[k]]``.
+        Shading: leaf triangle ``k`` has corner normals ``vnormals[faces[k]]``; in
+        the wide layout ``k`` is the mesh face.
     tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal
         Tile projections, height ranges, atlas rectangles, the depth layer and the
         int8 normal layer (see :mod:`._rbvh_kernels`).
@@ -81,14 +86,25 @@ class SurfaceIndex:
     layers: dict = field(default_factory=dict)  # extra atlas layers (surface storage)
     discs: np.ndarray = field(default_factory=lambda: np.zeros((0, 7), np.float32))
     disc_point: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    wide: WideBVH | None = None
+
+    @property
+    def layout(self) -> str:
+        """``"wide"`` (4-wide triangle BVH) or ``"binary"``."""
+        return "binary" if self.wide is None else "wide"
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float32: the box of everything the index holds."""
+        return self.node_bounds[0] if self.wide is None else self.wide.root
 
     @property
     def center(self) -> np.ndarray:
-        return self.node_bounds[0].mean(axis=0).astype(np.float64)
+        return self.bounds.mean(axis=0).astype(np.float64)
 
     @property
     def diagonal(self) -> float:
-        return float(np.linalg.norm(np.ptp(self.node_bounds[0].astype(np.float64), axis=0)))
+        return float(np.linalg.norm(np.ptp(self.bounds.astype(np.float64), axis=0)))
 
     @property
     def n_tiles(self) -> int:
@@ -96,17 +112,38 @@ class SurfaceIndex:
         return int(self.tile_rect.shape[0]) // self.mip_levels
 
     def kernel_args(self) -> tuple:
-        """The arrays every traversal kernel takes, in order."""
+        """The arrays every binary-layout traversal kernel takes, in order."""
         return (self.node_bounds, self.node_child, self.node_count, self.tris, self.tri_face,
                 self.faces, self.vnormals, self.tile_proj, self.tile_h, self.tile_rect,
                 self.atlas_depth, self.atlas_normal, self.discs, self.disc_point)
 
+    def ray_call(self, origins: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float,
+                 footprint: tuple[float, float], out: tuple) -> tuple[Any, tuple]:
+        """``(kernel, args)``: ``kernel(*args)`` casts rays ``origins``, ``dirs`` (n, 3) float64
+        (unit directions) into ``out = (t (n,), normals (n, 3), face (n,), tile (n,), uv (n, 2))``."""
+        if self.wide is not None:
+            w = self.wide
+            return cast_rays_wide, (*w.kernel_args(), self.faces, self.vnormals,
+                                    origins, dirs, t_min, t_max, w.stack_size, *out)
+        return cast_rays, (*self.kernel_args(), origins, dirs, t_min, t_max, self.depth + 2,
+                           footprint[0], footprint[1], self.mip_levels, *out)
+
+    def primary_call(self, params: np.ndarray, width: int, height: int, out: tuple) -> tuple[Any, tuple]:
+        """``(kernel, args)``: ``kernel(*args)`` casts the primary rays of camera ``params``
+        (:meth:`sparsecast.Camera.ray_params`) into per-pixel ``out`` (as :meth:`ray_call`'s, (H, W, ...))."""
+        if self.wide is not None:
+            w = self.wide
+            return cast_primary_wide, (*w.kernel_args(), self.faces, self.vnormals,
+                                       params, width, height, w.stack_size, *out)
+        return cast_primary, (*self.kernel_args(), params, width, height, self.depth + 2, self.mip_levels, *out)
+
     def nbytes(self) -> dict[str, int]:
         """Bytes of the tree, the triangles it stores, the atlas and the shading data."""
         tiles = self.n_tiles > 0
+        wide = self.wide.nbytes() if self.wide is not None else {"nodes": 0, "triangles": 0}
         return {
-            "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes),
-            "triangles": int(self.tris.nbytes + self.tri_face.nbytes),
+            "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes) + wide["nodes"],
+            "triangles": int(self.tris.nbytes + self.tri_face.nbytes) + wide["triangles"],
             "discs": int(self.discs.nbytes + self.disc_point.nbytes),
             "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tile_proj.nbytes
                          + self.tile_h.nbytes + self.tile_rect.nbytes) if tiles else 0,
@@ -118,19 +155,21 @@ class SurfaceIndex:
         """Node / leaf counts, depth, bytes, build time per phase."""
         c = self.node_count
         b = self.nbytes()
+        w = self.wide
         out = {
             "kind": self.kind,
-            "nodes": int(len(c)),
-            "triangle_leaves": int((c > 0).sum()),
+            "layout": self.layout,
+            "nodes": int(len(c)) if w is None else int(len(w.nodes)),
+            "triangle_leaves": int((c > 0).sum()) if w is None else w.n_leaves,
             "tile_leaves": int((c == TILE_LEAF).sum()),
-            "triangles": int(len(self.tris)),
+            "triangles": int(len(self.tris)) if w is None else int(np.count_nonzero(w.face4 >= 0)),
             "disc_leaves": int((c < TILE_LEAF).sum()),
             "discs": int(len(self.discs)),
             "tiles": self.n_tiles,
             "mip_levels": self.mip_levels,
             "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
             "atlas_shape": list(self.atlas_depth.shape) if self.n_tiles else [0, 0],
-            "depth": self.depth,
+            "depth": self.depth if w is None else w.depth,
             "bytes": int(sum(b.values())),
             **{f"bytes_{k}": v for k, v in b.items()},
         }
@@ -211,13 +250,12 @@ class RayCast:
         fp0, spread = (float(x) for x in footprint)
         if not (fp0 >= 0 and spread >= 0):
             raise ParameterError(f"footprint: expected two non-negative numbers (w0, spread), got {footprint!r}")
-        self._args = (*index.kernel_args(), self.origins, self.directions, float(t_min), float(t_max),
-                      index.depth + 2, fp0, spread, index.mip_levels,
-                      self.t, self.normals, self.face, self.tile, self.uv)
+        self._kernel, self._args = index.ray_call(self.origins, self.directions, float(t_min), float(t_max),
+                                                  (fp0, spread), (self.t, self.normals, self.face, self.tile, self.uv))
 
     def run(self) -> "RayCast":
         """Cast every ray (the kernel fills the output arrays in place)."""
-        cast_rays(*self._args)
+        self._kernel(*self._args)
         return self
 
     def hits(self) -> Hits:

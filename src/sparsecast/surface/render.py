@@ -10,7 +10,6 @@ import numpy as np
 from ..camera import Camera
 from ..errors import ParameterError
 from ..image import Image
-from ._bvh_kernels import cast_primary
 from .index import SurfaceIndex
 from .secondary import facing
 
@@ -47,9 +46,9 @@ def cast_camera(index: SurfaceIndex, camera: Camera, width: int, height: int) ->
     face = np.empty((height, width), np.int32)
     tile = np.empty((height, width), np.int32)
     uv = np.empty((height, width, 2), np.float32)
+    kernel, args = index.primary_call(params, width, height, (t, nrm, face, tile, uv))
     t0 = time.perf_counter()
-    cast_primary(*index.kernel_args(), params, width, height, index.depth + 2, index.mip_levels,
-                 t, nrm, face, tile, uv)
+    kernel(*args)
     ms = (time.perf_counter() - t0) * 1e3
     return PixelHits(t, nrm, face, tile, uv, ms)
 

@@ -1,0 +1,238 @@
+"""Closest-hit traversal of the 4-wide triangle BVH (layout: :mod:`._wide_build_kernels`).
+
+Per wide node the ray meets all four child boxes in one loop over the SoA rows
+(the near and far planes per axis picked once per ray from the signs of its
+direction, so the loop has no min/max of plane pairs and LLVM vectorises it);
+the children it enters go on the stack sorted by entry distance, nearest on top,
+and a popped entry farther than the best hit so far is dropped. Leaves test
+packets of four triangles lane by lane in the same way.
+
+**Watertight triangle test** (Woop, Benthin & Wald, JCGT 2013): the vertices are
+translated to the ray origin and sheared so that the ray runs along +z; the
+three 2-D edge functions of a shared edge are then computed from the same
+numbers in opposite order, so they are exact negatives, and a ray through an
+edge or vertex of a closed mesh finds one of its triangles (no cracks); edge
+functions are in float64 (the float32 vertices' products are exact enough that
+no double-precision fallback is needed). Box tests are conservative: the far
+distance is widened by a few ulps (Ize 2013), so rounding never drops a box the
+ray touches, and a ray with a zero direction component that runs in a box's face
+plane counts as inside the slab (:func:`slab_origins`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.borrow import borrowed, keep_alive
+from ..kernels.camera import primary_ray
+from ..kernels.tiles import tile_bounds, tile_count
+from ._wide_build_kernels import LEAF_SHIFT
+
+#: rays per parallel work item of the batch driver
+RAY_CHUNK = 64
+#: far-plane widening of the box test: covers the float64 rounding of (plane - o) / d
+ROBUST = 1.0 + 2.0 ** -48
+
+
+def stack_size(depth: int) -> int:
+    """Stack entries a ray needs in a wide tree of ``depth`` levels (up to three siblings wait per level)."""
+    return 3 * int(depth) + 4
+
+
+@njit(cache=True, inline="always")
+def _inv(d):
+    # A huge finite inverse keeps (plane - o) * inv free of 0 * inf = NaN.
+    if d == 0.0:
+        return 1e30
+    return 1.0 / d
+
+
+@njit(cache=True, inline="always")
+def slab_origins(o, d):
+    """Origin coordinate for the near and the far plane of a slab test along one axis.
+
+    With ``d = 0`` the slab test multiplies by a huge inverse, and a ray running in
+    a plane of the slab (``o`` equal to a box's min or max) would give ``0 * 1e30 =
+    0``: the box would end at ``t = 0``. Moving the origin a few ulps into the slab
+    for each plane (up for the near one, down for the far one) makes such a ray
+    inside, as the triangle test sees it; other rays keep their origin.
+    """
+    if d != 0.0:
+        return o, o
+    eps = max(abs(o) * 2.0 ** -50, 1e-300)
+    return o + eps, o - eps
+
+
+@njit(cache=True, inline="always")
+def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, dy, dz, t_min, t_max,
+                     st_node, st_t, lane_t):
+    """Nearest triangle hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (8,) float64.
+
+    ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
+    (:attr:`.wide.WideBVH.nodes`): boxes at ``4 row + c``, children at ``24 + c``.
+
+    Returns ``(t, nx, ny, nz, face, -1, a, b)`` as :func:`._bvh_kernels.closest_hit`
+    (``t = inf`` on a miss; unit shading normal; barycentrics ``a, b`` of
+    vertices 1 and 2).
+    """
+    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
+    nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
+    nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
+    nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
+    onx, ofx = slab_origins(ox, dx)
+    ony, ofy = slab_origins(oy, dy)
+    onz, ofz = slab_origins(oz, dz)
+    # Watertight test set-up: kz the dominant axis, shear onto it.
+    ax_, ay_, az_ = abs(dx), abs(dy), abs(dz)
+    if ax_ >= ay_ and ax_ >= az_:
+        kz = 0
+    elif ay_ >= az_:
+        kz = 1
+    else:
+        kz = 2
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    d_k = (dx, dy, dz)
+    o_k = (ox, oy, oz)
+    dkz = d_k[kz]
+    sx, sy, sz = d_k[kx] / dkz, d_k[ky] / dkz, 1.0 / dkz
+    okx, oky, okz = o_k[kx], o_k[ky], o_k[kz]
+    best = t_max
+    face = -1
+    ha = hb = 0.0
+    sp = 1
+    st_node[0] = 0
+    st_t[0] = t_min
+    while sp > 0:
+        sp -= 1
+        if st_t[sp] > best:
+            continue
+        node = st_node[sp]
+        if node >= 0:
+            sp0 = sp
+            for c in range(4):
+                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
+                         max((box[node, nzr + c] - onz) * iz, t_min))
+                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
+                         (box[node, fzr + c] - ofz) * iz) * ROBUST
+                lane_t[c] = tn if tn <= min(tf, best) else math.inf
+            for c in range(4):
+                t = lane_t[c]
+                if t == math.inf:
+                    continue
+                # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
+                j = sp
+                while j > sp0 and st_t[j - 1] < t:
+                    st_node[j] = st_node[j - 1]
+                    st_t[j] = st_t[j - 1]
+                    j -= 1
+                st_node[j] = child[node, 24 + c]
+                st_t[j] = t
+                sp += 1
+            continue
+        code = -1 - node
+        p0 = code >> LEAF_SHIFT
+        for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
+            for lane in range(4):
+                vax = tri4[p, kx, lane] - okx
+                vay = tri4[p, ky, lane] - oky
+                vaz = tri4[p, kz, lane] - okz
+                vbx = tri4[p, 3 + kx, lane] - okx
+                vby = tri4[p, 3 + ky, lane] - oky
+                vbz = tri4[p, 3 + kz, lane] - okz
+                vcx = tri4[p, 6 + kx, lane] - okx
+                vcy = tri4[p, 6 + ky, lane] - oky
+                vcz = tri4[p, 6 + kz, lane] - okz
+                a_x, a_y = vax - sx * vaz, vay - sy * vaz
+                b_x, b_y = vbx - sx * vbz, vby - sy * vbz
+                c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
+                u = c_x * b_y - c_y * b_x
+                v = a_x * c_y - a_y * c_x
+                w = b_x * a_y - b_y * a_x
+                det = u + v + w
+                inside = ((u >= 0.0) & (v >= 0.0) & (w >= 0.0)) | ((u <= 0.0) & (v <= 0.0) & (w <= 0.0))
+                t = sz * (u * vaz + v * vbz + w * vcz) / det if det != 0.0 else math.inf
+                ok = inside & (t >= t_min) & (t <= best)
+                lane_t[lane] = t if ok else math.inf
+                lane_t[4 + lane] = det
+            for lane in range(4):
+                t = lane_t[lane]
+                if t < best:
+                    best = t
+                    face = face4[p, lane]
+                    # Barycentrics of vertices 1 and 2: their edge functions over det.
+                    det = lane_t[4 + lane]
+                    vax = tri4[p, kx, lane] - okx
+                    vay = tri4[p, ky, lane] - oky
+                    vaz = tri4[p, kz, lane] - okz
+                    vcx = tri4[p, 6 + kx, lane] - okx
+                    vcy = tri4[p, 6 + ky, lane] - oky
+                    vcz = tri4[p, 6 + kz, lane] - okz
+                    vbx = tri4[p, 3 + kx, lane] - okx
+                    vby = tri4[p, 3 + ky, lane] - oky
+                    vbz = tri4[p, 3 + kz, lane] - okz
+                    a_x, a_y = vax - sx * vaz, vay - sy * vaz
+                    b_x, b_y = vbx - sx * vbz, vby - sy * vbz
+                    c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
+                    ha = (a_x * c_y - a_y * c_x) / det
+                    hb = (b_x * a_y - b_y * a_x) / det
+    if face < 0:
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    w = 1.0 - ha - hb
+    f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
+    nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
+    ny = w * vnormals[f0, 1] + ha * vnormals[f1, 1] + hb * vnormals[f2, 1]
+    nz = w * vnormals[f0, 2] + ha * vnormals[f1, 2] + hb * vnormals[f2, 2]
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if ln > 0.0:
+        nx, ny, nz = nx / ln, ny / ln, nz / ln
+    return best, nx, ny, nz, face, -1, ha, hb
+
+
+@njit(cache=True, parallel=True)
+def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_min, t_max, n_stack,
+                   out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`."""
+    n = origins.shape[0]
+    n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
+    for c in prange(n_chunks):
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        # Borrowed views: passing owned arrays to the per-ray call would cost two
+        # atomic reference-count updates per array per ray (see kernels.borrow).
+        bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
+        st_node, st_t, lane_t = borrowed(scratch)
+        for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
+            t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
+                bx, ch, t4, f4, fa, vn, origins[r, 0], origins[r, 1], origins[r, 2],
+                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_t)
+            out_t[r] = t
+            out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
+            out_face[r], out_tile[r] = f, tl
+            out_uv[r, 0], out_uv[r, 1] = a, b
+        keep_alive(scratch)
+
+
+@njit(cache=True, parallel=True)
+def cast_primary_wide(box, child, tri4, face4, faces, vnormals, params, width, height, n_stack,
+                      out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
+    :func:`._bvh_kernels.cast_primary`)."""
+    for tile in prange(tile_count(width, height)):
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
+        st_node, st_t, lane_t = borrowed(scratch)
+        x0, x1, y0, y1 = tile_bounds(tile, width, height)
+        for py in range(y0, y1):
+            for px in range(x0, x1):
+                ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
+                t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
+                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_t)
+                out_t[py, px] = t
+                out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
+                out_face[py, px], out_tile[py, px] = f, tl
+                out_uv[py, px, 0], out_uv[py, px, 1] = a, b
+        keep_alive(scratch)
