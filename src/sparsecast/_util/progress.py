@@ -3,9 +3,8 @@
 :func:`chunk_progress` yields a :class:`ChunkProgress` whose :meth:`~ChunkProgress.advance`
 any worker thread may call: a rich bar on stderr (markup off: the description is a
 file name, printed as written), a caller's ``callback(done, total)``, or nothing.
-:class:`DaskTaskProgress` advances it from dask's scheduler callbacks, for work whose
-tasks dask makes (``dask.array.store``): it counts the finished tasks whose key
-name starts with a given prefix.
+The block tasks the work runs on dask's scheduler advance it themselves, so it counts
+exactly the chunks (not dask's internal tasks).
 """
 
 from __future__ import annotations
@@ -14,7 +13,7 @@ import contextlib
 import threading
 from collections.abc import Callable, Iterator
 
-__all__ = ["ChunkProgress", "chunk_progress", "DaskTaskProgress", "ProgressArg"]
+__all__ = ["ChunkProgress", "chunk_progress", "ProgressArg"]
 
 #: what a ``progress=`` parameter takes: off (None/False), a rich bar (True), or a callback
 ProgressArg = bool | Callable[[int, int], None] | None
@@ -65,20 +64,3 @@ def chunk_progress(progress: ProgressArg, total: int, description: str) -> Itera
                   TimeRemainingColumn(), console=console, transient=True) as bar:
         task = bar.add_task(description, total=total)
         yield ChunkProgress(total, lambda done, _total: bar.update(task, completed=done))
-
-
-def DaskTaskProgress(prefix: str, progress: ChunkProgress):  # noqa: N802 - a class made on first use
-    """A dask callback that advances ``progress`` when a task whose key name starts with
-    ``prefix`` finishes (use as a context manager around ``compute``/``store``).
-
-    Built on first use so that importing this module does not import dask.
-    """
-    from dask.callbacks import Callback
-
-    class _Counter(Callback):
-        def _posttask(self, key, result, dsk, state, worker_id):
-            name = key[0] if isinstance(key, tuple) else key
-            if isinstance(name, str) and name.startswith(prefix):
-                progress.advance()
-
-    return _Counter()
