@@ -26,6 +26,7 @@ import os
 import secrets
 import shutil
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -321,7 +322,12 @@ def convert_volume(
 def _ome_metadata(root, shapes, spacing: np.ndarray, origin: np.ndarray, labels: bool, name: str) -> None:
     """OME-Zarr 0.5 multiscales: axes z, y, x and per level a scale and a translation."""
     from ome_zarr.format import FormatV05
-    from ome_zarr.writer import write_multiscales_metadata
+
+    with warnings.catch_warnings():
+        # ome_zarr.writer builds a deprecated Scaler as a default argument on import;
+        # we write our own levels and only use its metadata writer.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from ome_zarr.writer import write_multiscales_metadata
 
     datasets = []
     for i in range(len(shapes)):

@@ -128,12 +128,15 @@ def scan_blocks(shape, itemsize: int, chunks: tuple[int, ...] | None,
     """Block shape for a pass over an array: whole chunks of the store (a chunk is read
     and decoded once), grown along x, then y, then z while the block stays under
     ``target`` bytes; a contiguous array (``chunks=None``) in slabs of whole rows."""
-    base = list(chunks) if chunks is not None else [1, 1, int(shape[2])]
-    base = [max(1, min(int(c), int(n))) for c, n in zip(base, shape)]
+    nz, ny, nx = (int(n) for n in shape)
+    if chunks is None:
+        rows = max(1, min(ny, target // max(1, nx * itemsize)))
+        planes = max(1, min(nz, target // (ny * nx * itemsize))) if rows == ny else 1
+        return (planes, rows, nx)
+    base = [max(1, min(int(c), int(n))) for c, n in zip(chunks, shape)]
     for axis in (2, 1, 0):
         while base[axis] < shape[axis]:
-            step = chunks[axis] if chunks is not None else base[axis]
-            grown = min(base[axis] + step, int(shape[axis]))
+            grown = min(base[axis] + chunks[axis], int(shape[axis]))
             if math.prod(base) // base[axis] * grown * itemsize > target:
                 break
             base[axis] = grown
