@@ -70,6 +70,7 @@ def test_scan_of_a_zarr_source_with_unaligned_chunks(tmp_path, brick_size, dtype
 def test_scan_blocks_grow_whole_chunks_up_to_the_target():
     assert scan_blocks((100, 100, 100), 1, (10, 10, 10), target=10 * 100 * 100) == (10, 100, 100)
     assert scan_blocks((100, 100, 100), 4, None, target=4 * 3 * 100 * 100) == (3, 100, 100)
+    assert scan_blocks((64, 4096, 4096), 1, None, target=4 << 20) == (16, 64, 4096)  # planes of 256 KiB
     assert scan_blocks((5, 5, 5), 1, (64, 64, 64)) == (5, 5, 5)
 
 

@@ -45,6 +45,8 @@ __all__ = ["convert_volume", "Converted", "pyramid_shapes", "BLOCK_BYTES"]
 
 #: bytes of the output a block task writes (a whole number of chunks)
 BLOCK_BYTES = 16 << 20
+#: the path of an input that is no file (a Volume, an ndarray)
+_MEMORY = Path("<in memory>")
 #: an OME pyramid stops at the first level whose largest axis is at most this
 PYRAMID_FLOOR = 64
 
@@ -93,9 +95,9 @@ def _input(src, level, load_options: dict) -> Source:
     if isinstance(src, Source):
         return src
     if isinstance(src, Volume):
-        return _in_memory(src.data, src.spacing, src.origin, src.name, Path(src.name), src.orientation)
+        return _in_memory(src.data, src.spacing, src.origin, src.name, _MEMORY, src.orientation)
     if isinstance(src, np.ndarray):
-        return _in_memory(src, np.ones(3), np.zeros(3), "array", Path("array"), None)
+        return _in_memory(src, np.ones(3), np.zeros(3), "array", _MEMORY, None)
     if not isinstance(src, (str, os.PathLike)):
         raise fail("src", "a file path, Source, Volume or ndarray", type(src).__name__)
     lazy_opts = {k: v for k, v in load_options.items() if k in ("dims", "dtype", "byte_order", "header_offset",
@@ -266,7 +268,7 @@ def convert_volume(
         raise ParameterError(f"out: {str(out)!r} exists and is not a Zarr store; expected a new name or a "
                              f"Zarr store to replace")
     source = _input(src, level, load_options)
-    if source.path.exists() and _same_or_nested(out, source.path):
+    if source.path != _MEMORY and source.path.exists() and _same_or_nested(out, source.path):
         raise ParameterError(
             f"out: {str(out)!r} is, holds or lies inside the input {str(source.path)!r}; a source is never "
             f"written to: choose another name"

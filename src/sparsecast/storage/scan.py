@@ -51,6 +51,8 @@ __all__ = ["Scan", "scan", "scan_blocks"]
 #: bytes a block of the scan aims at: large enough that per-task overhead vanishes,
 #: small enough that ``workers`` blocks in flight are a small fraction of memory
 BLOCK_BYTES = 8 << 20
+#: bytes of one z-slice of a block of contiguous data (see :func:`scan_blocks`)
+PLANE_BYTES = 256 << 10
 
 
 @dataclass(frozen=True)
@@ -123,6 +125,18 @@ def _array_of(volume) -> tuple[Any, str, tuple[int, ...] | None]:
     return array, name, (tuple(int(c) for c in chunks) if chunks is not None else None)
 
 
+class _Sliced:
+    """An ndarray seen by dask as an opaque array-like: blocks are views taken when a task
+    runs (``from_array`` copies every block of an ndarray up front, the whole array)."""
+
+    def __init__(self, array: np.ndarray) -> None:
+        self.shape, self.dtype, self.ndim = array.shape, array.dtype, array.ndim
+        self._array = array
+
+    def __getitem__(self, key) -> np.ndarray:
+        return self._array[key]
+
+
 def scan_blocks(shape, itemsize: int, chunks: tuple[int, ...] | None,
                 target: int = BLOCK_BYTES) -> tuple[int, int, int]:
     """Block shape for a pass over an array: whole chunks of the store (a chunk is read
@@ -130,8 +144,10 @@ def scan_blocks(shape, itemsize: int, chunks: tuple[int, ...] | None,
     ``target`` bytes; a contiguous array (``chunks=None``) in slabs of whole rows."""
     nz, ny, nx = (int(n) for n in shape)
     if chunks is None:
-        rows = max(1, min(ny, target // max(1, nx * itemsize)))
-        planes = max(1, min(nz, target // (ny * nx * itemsize))) if rows == ny else 1
+        # Whole rows; at most PLANE_BYTES of a plane, so the kernel's reduced planes stay
+        # in cache while the block's z-slices stream past them; then as many planes as fit.
+        rows = max(1, min(ny, PLANE_BYTES // max(1, nx * itemsize)))
+        planes = max(1, min(nz, target // (rows * nx * itemsize)))
         return (planes, rows, nx)
     base = [max(1, min(int(c), int(n))) for c, n in zip(chunks, shape)]
     for axis in (2, 1, 0):
@@ -253,6 +269,8 @@ def scan(
     if isinstance(array, da.Array):
         darr = array
     else:
+        if isinstance(array, np.ndarray):
+            array = _Sliced(array)  # dask would copy an ndarray's blocks when the graph is built
         block = scan_blocks(shape, dtype.itemsize, native)
         # lock=False: the sources are read-only and their readers thread-safe (h5py
         # serialises itself); asarray=False keeps the source's own reads lazy.
@@ -373,11 +391,15 @@ def _warm(dtype: np.dtype) -> None:
     once per process, so that the pass's time excludes compilation."""
     if dtype.str in _WARM:
         return
-    tiny = np.zeros((2, 2, 2), dtype)
     w = np.zeros(1, np.int64)
     out = np.empty((1, 1, 1))
-    window_minmax(tiny, w, w, w, w, w, w, out, out)
-    window_minmax(tiny.astype(np.uint8), w, w, w, w, w, w, out, out)  # the NaN/Inf flags
-    if dtype.kind in "ui" and dtype.itemsize <= 2:
-        count_values_nogil(tiny, 0, np.zeros(2, np.int64))
+    # Blocks are writable copies or read-only views of a memory map: Numba types the
+    # two apart, so both are compiled here.
+    for writable in (True, False):
+        tiny = np.zeros((2, 2, 2), dtype)
+        tiny.setflags(write=writable)
+        window_minmax(tiny, w, w, w, w, w, w, out, out)
+        if dtype.kind in "ui" and dtype.itemsize <= 2:
+            count_values_nogil(tiny, 0, np.zeros(2, np.int64))
+    window_minmax(np.zeros((2, 2, 2), np.uint8), w, w, w, w, w, w, out, out)  # the NaN/Inf flags
     _WARM.add(dtype.str)
