@@ -1,5 +1,5 @@
-"""The ``sparsecast`` command line: ``render``, ``info``, ``bench``, ``view``, ``render-mesh``, ``render-points``
-and ``compile``.
+"""The ``sparsecast`` command line: ``render``, ``info``, ``bench``, ``view``, ``render-mesh``, ``render-points``,
+``compile`` and ``convert``.
 
 :mod:`.app` holds the typer application and the entry point :func:`main`; each
 command group is a module of its own that registers its command on the app when
@@ -7,7 +7,7 @@ imported here (in the order ``sparsecast --help`` lists them). :mod:`.parse` hol
 every command-line value parser.
 """
 
-from . import render, info, bench, view, mesh, points, compile  # noqa: F401  (register the commands, in --help order)
+from . import render, info, bench, view, mesh, points, compile, convert  # noqa: F401  (register the commands, in --help order)
 from .app import app, main
 
 __all__ = ["app", "main"]

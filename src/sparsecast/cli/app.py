@@ -2,7 +2,7 @@
 :func:`main`, the console entry point.
 
 Commands live one group per module (:mod:`.render`, :mod:`.info`, :mod:`.bench`,
-:mod:`.view`, :mod:`.mesh`, :mod:`.points`, :mod:`.compile`) and register themselves on :data:`app` when
+:mod:`.view`, :mod:`.mesh`, :mod:`.points`, :mod:`.compile`, :mod:`.convert`) and register themselves on :data:`app` when
 :mod:`sparsecast.cli` imports them; this module imports none of them, so the
 dependencies point one way only.
 """

@@ -23,6 +23,7 @@ import math
 import os
 import zlib
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,7 +34,7 @@ from .budget import check_declared, memory_limit
 from .files import file_size, require_regular_file
 from .reading import Read, read_guard
 
-__all__ = ["read_nrrd", "write_nrrd", "HEADER_LIMIT", "SPACES"]
+__all__ = ["read_nrrd", "raw_payload", "RawPayload", "EncodedPayloadError", "write_nrrd", "HEADER_LIMIT", "SPACES"]
 
 #: NRRD ``space`` values with an anatomical meaning -> the directions of its +x, +y, +z
 #: (the spec's long names and abbreviations; other spaces, e.g. scanner-xyz, have none)
@@ -72,6 +73,54 @@ def read_nrrd(path: Path, *, allow_outside: bool = False) -> Read:
         Not a 3-D scalar NRRD, a header or payload that is too large, truncated or
         longer than declared, or a data file outside the header's folder.
     """
+    header, header_size, sizes = _scalar_header(path)
+    data = _payload(path, header, header_size, sizes, allow_outside)
+    return Read(data, _spacing(header), _origin(header), _orientation(header))
+
+
+class EncodedPayloadError(FileFormatError):
+    """A compressed or ASCII NRRD payload asked for as a raw one (:func:`raw_payload`): it
+    cannot be mapped, only decoded whole (:func:`read_nrrd`)."""
+
+
+class RawPayload(NamedTuple):
+    """Where a raw-encoded NRRD's voxels lie (see :func:`raw_payload`)."""
+
+    file: Path
+    offset: int
+    dtype: np.dtype
+    shape: tuple[int, int, int]
+    spacing: np.ndarray | None
+    origin: np.ndarray | None
+    orientation: tuple[str, str, str] | None
+
+
+def raw_payload(path: Path, *, allow_outside: bool = False) -> RawPayload:
+    """The file, byte offset, dtype and shape ``(nz, ny, nx)`` of a raw-encoded NRRD's
+    payload, with its spacing, origin and orientation; nothing of the payload is read
+    (a memory map takes it from here, at any size).
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`read_nrrd`, and for a compressed or ASCII payload, which cannot be
+        mapped: it must be decoded whole.
+    """
+    header, header_size, sizes = _scalar_header(path)
+    encoding = _ENCODINGS.get(str(header.get("encoding", "")).lower())
+    if encoding != "raw":
+        raise EncodedPayloadError(
+            f"{str(path)!r}: {header.get('encoding')}-encoded NRRD payload cannot be read lazily (it must "
+            f"be decoded whole); expected encoding raw; load it into memory, or convert it once "
+            f"(sparsecast convert {path.name} OUT.zarr) and open the Zarr store"
+        )
+    source, offset = _payload(path, header, header_size, sizes, allow_outside, locate=True)
+    return RawPayload(source, offset, _dtype(path, header), tuple(sizes[::-1]), _spacing(header),
+                      _origin(header), _orientation(header))
+
+
+def _scalar_header(path: Path) -> tuple[dict, int, list[int]]:
+    """The header of a 3-D scalar NRRD, its length in bytes and its sizes (x fastest)."""
     require_regular_file(path, "NRRD file")
     header, header_size = _read_header(path)
     dim = int(header.get("dimension", len(header.get("sizes", []))))
@@ -88,8 +137,7 @@ def read_nrrd(path: Path, *, allow_outside: bool = False) -> Read:
                 f"{str(path)!r}: non-scalar NRRD (axis kinds {list(kinds)}); "
                 f"expected a 3-D scalar volume with kinds 'domain' or 'space'"
             )
-    data = _payload(path, header, header_size, sizes, allow_outside)
-    return Read(data, _spacing(header), _origin(header), _orientation(header))
+    return header, header_size, sizes
 
 
 def _read_header(path: Path) -> tuple[dict, int]:
@@ -153,7 +201,10 @@ def _data_path(path: Path, name: str, allow_outside: bool) -> Path:
         raise FileFormatError(f"{str(path)!r}: data file {name!r}: {exc}") from None
 
 
-def _payload(path: Path, header: dict, header_size: int, sizes: list[int], allow_outside: bool) -> np.ndarray:
+def _payload(path: Path, header: dict, header_size: int, sizes: list[int], allow_outside: bool,
+             locate: bool = False):
+    """The payload as an array (nz, ny, nx); with ``locate`` (raw encoding only), the
+    ``(data file, byte offset)`` where it starts instead, its size checked."""
     dtype = _dtype(path, header)
     count = math.prod(sizes)
     declared = count * dtype.itemsize
@@ -211,12 +262,22 @@ def _payload(path: Path, header: dict, header_size: int, sizes: list[int], allow
             pos = total - declared  # the data is the last bytes of the file
         else:
             pos += byte_skip
-        check_declared(path, declared, what, available=total - pos if pos >= fh.tell() else -1)
+        if locate:
+            if pos < fh.tell() or declared > total - pos:
+                raise FileFormatError(
+                    f"{str(path)!r}: {what} declares {declared} bytes of data, but the file holds only "
+                    f"{max(total - pos, 0) if pos >= fh.tell() else 0} bytes after the header (file truncated, "
+                    f"or the header is wrong)"
+                )
+        else:
+            check_declared(path, declared, what, available=total - pos if pos >= fh.tell() else -1)
         if total - pos > declared:
             raise FileFormatError(
                 f"{str(path)!r}: the raw payload holds {total - pos} bytes, the header declares "
                 f"{declared}; expected exactly that many"
             )
+        if locate:
+            return source, pos
         fh.seek(pos)
         arr = read_guard(path, "NRRD", np.fromfile, fh, dtype, count)
     if arr.size != count:

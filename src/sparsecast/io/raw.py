@@ -17,7 +17,7 @@ from .budget import check_declared
 from .files import file_size, require_regular_file
 from .reading import Read, read_guard
 
-__all__ = ["RAW_DTYPES", "parse_raw_name", "raw_dtype", "read_raw", "write_raw", "check_raw_name"]
+__all__ = ["RAW_DTYPES", "parse_raw_name", "raw_dtype", "raw_layout", "read_raw", "write_raw", "check_raw_name"]
 
 PathLike = str | os.PathLike
 
@@ -127,6 +127,33 @@ def read_raw(path: Path, dims=None, dtype=None, byte_order: str = "little", head
 
     The file size must be exactly ``nx*ny*nz*itemsize + header_offset``.
     """
+    shape, dt, header_offset = raw_layout(path, dims, dtype, byte_order, header_offset)
+    nz, ny, nx = shape
+    check_declared(path, nx * ny * nz * dt.itemsize, f"raw layout {nx}x{ny}x{nz} {dt.name}")
+    arr = read_guard(
+        path, "raw", np.fromfile, str(path), dtype=dt, count=nx * ny * nz, offset=header_offset
+    )
+    if arr.size != nx * ny * nz:
+        raise FileFormatError(f"{repr(str(path))}: read {arr.size} voxels, expected {nx * ny * nz}")
+    return arr.reshape(nz, ny, nx), None, None
+
+
+def raw_layout(path: Path, dims=None, dtype=None, byte_order: str = "little",
+               header_offset: int = 0) -> tuple[tuple[int, int, int], np.dtype, int]:
+    """Where a raw file's voxels lie: ``((nz, ny, nx), dtype with byte order, offset)``.
+
+    ``dims``/``dtype`` as :func:`read_raw` takes them (or parsed from the file name);
+    the file size must be exactly ``nx*ny*nz*itemsize + header_offset``. Nothing is
+    read, so a memory map (:func:`sparsecast.io.sources.open_source`) may use it for a
+    file of any size.
+
+    Raises
+    ------
+    ParameterError
+        No dims/dtype given or in the name, bad dims, byte order or offset.
+    FileFormatError
+        Not a regular file, an unsupported dtype, or a size that does not match.
+    """
     where = repr(str(path))
     if dims is None or dtype is None:
         parsed_dims = _parse_dims_only(path)
@@ -159,13 +186,7 @@ def read_raw(path: Path, dims=None, dtype=None, byte_order: str = "little", head
             f"{where}: file size is {size} bytes, expected {expected} bytes "
             f"({nx}x{ny}x{nz} voxels of {dt.name}, {dt.itemsize} byte(s) each{extra})"
         )
-    check_declared(path, expected - header_offset, f"raw layout {nx}x{ny}x{nz} {dt.name}")
-    arr = read_guard(
-        path, "raw", np.fromfile, str(path), dtype=dt, count=nx * ny * nz, offset=header_offset
-    )
-    if arr.size != nx * ny * nz:
-        raise FileFormatError(f"{where}: read {arr.size} voxels, expected {nx * ny * nz}")
-    return arr.reshape(nz, ny, nx), None, None
+    return (nz, ny, nx), dt, header_offset
 
 
 def check_raw_name(volume: Volume, target: Path) -> None:
