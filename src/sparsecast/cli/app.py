@@ -57,7 +57,8 @@ def error(message: str) -> None:
 # Options shared by the commands that load and classify a volume (render, info, view).
 FileArg = Annotated[
     Optional[Path],
-    typer.Argument(help="Volume file (.nrrd .nhdr .nii .nii.gz .raw .npy .tif); omit for the built-in demo."),
+    typer.Argument(help="Volume file (.nrrd .nhdr .nii .nii.gz .raw .npy .tif), Zarr / OME-Zarr store, or "
+                        "file.h5:/dataset; omit for the built-in demo."),
 ]
 TfOpt = Annotated[
     str, typer.Option("--tf", help="Preset name (see `sparsecast info --presets`), a TF .json file (a label "
@@ -71,6 +72,14 @@ SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 
 AllowOutsideOpt = Annotated[bool, typer.Option(
     "--allow-outside-data",
     help="NRRD: read a detached header's data file even when it lies outside the header's folder.")]
+LazyOpt = Annotated[Optional[bool], typer.Option(
+    "--lazy/--no-lazy",
+    help="Keep the volume as bricks read from the file on demand (Zarr, HDF5, .npy, raw, raw NRRD). Default: "
+         "lazy when it is larger than --memory-limit, or than half the memory.")]
+MemoryLimitOpt = Annotated[Optional[str], typer.Option(
+    help="Most memory a lazy volume's resident bricks may take, e.g. 2GB or 512MiB.")]
+LevelOpt = Annotated[Optional[str], typer.Option(
+    help="OME-Zarr: the resolution level, by index or path (default: the finest).")]
 CellOpt = Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")]
 OrientationOpt = Annotated[Optional[str], typer.Option(
     help="Anatomical axis codes of +i, +j, +k, e.g. RAS or LPS (default: the file's NRRD space / NIfTI "

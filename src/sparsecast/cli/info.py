@@ -10,8 +10,10 @@ import typer
 from rich.text import Text
 
 from ..kernel_cache import compile_note, compile_seconds
+from ..storage import BrickedVolume
 from .app import (
-    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out,
+    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, SpacingOpt, TfOpt,
+    TfRangeOpt, ThresholdOpt, app, out,
 )
 from .inputs import load_input, make_tf
 
@@ -29,6 +31,9 @@ def info(
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
     orientation: OrientationOpt = None,
+    lazy: LazyOpt = None,
+    memory_limit: MemoryLimitOpt = None,
+    level: LevelOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
     presets: Annotated[bool, typer.Option("--presets", help="List TF presets and exit.")] = False,
     indices: Annotated[bool, typer.Option("--indices", help="List spatial indices and exit.")] = False,
@@ -50,7 +55,8 @@ def info(
             listed = "any keyword" if opts is None else (", ".join(opts) or "no options")
             out.print(f"  {name:<15} {listed}")
         return
-    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation, lazy=lazy,
+                     memory_limit=memory_limit, level=level)
     tfn = make_tf(tf, vol, tf_range, threshold)
     lo, hi = vol.value_range
     c0 = compile_seconds()
@@ -61,11 +67,19 @@ def info(
     note = compile_note(compile_seconds() - c0)
     nx, ny, nz = vol.dims
     out.print(Text.assemble((vol.name, "bold"), "  ", str(file) if file else "(built-in demo)"))
-    out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.nbytes / 2**20:.1f} MiB, dtype {vol.dtype})")
+    if isinstance(vol, BrickedVolume):
+        out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.dense_nbytes / 2**20:.1f} MiB dense, dtype {vol.dtype})")
+        out.print(f"  storage   bricks of {vol.brick_size}^3: {vol.stored_bricks} of {int(np.prod(vol.brick_grid))} "
+                  f"stored ({100 * vol.stored_bricks / max(1, int(np.prod(vol.brick_grid))):.2f} %), "
+                  f"{vol.resident_bricks} resident, {vol.nbytes / 2**20:.1f} MiB held"
+                  + (f", memory_limit {vol.memory_limit / 2**20:.0f} MiB" if vol.memory_limit else "")
+                  + (", read lazily" if vol.lazy else ""))
+    else:
+        out.print(f"  dims      {nx} x {ny} x {nz}  ({vol.nbytes / 2**20:.1f} MiB, dtype {vol.dtype})")
     out.print(f"  spacing   {tuple(round(float(s), 6) for s in vol.spacing)}   origin {tuple(round(float(o), 6) for o in vol.origin)}")
     out.print(f"  anatomy   {orientation_line(vol.orientation)}")
     out.print(f"  range     [{lo:g}, {hi:g}]")
-    out.print(f"  histogram |{histogram_sketch(vol.data)}|  (log counts, {lo:g} .. {hi:g})")
+    out.print(f"  histogram |{histogram_sketch(vol)}|  (log counts, {lo:g} .. {hi:g})")
     out.print(
         f"  occupancy {100 * nonempty.mean():.2f} % of {nonempty.size} bricks of {brick_size}^3 are non-empty "
         f"for TF {tfn.name!r} over [{tfn.value_range[0]:g}, {tfn.value_range[1]:g}] "
@@ -101,10 +115,9 @@ def orientation_line(codes) -> str:
     return f"{''.join(codes)} (" + ", ".join(f"+{a} {names[c]}" for a, c in zip("ijk", codes)) + ")"
 
 
-def histogram_sketch(data: np.ndarray, bins: int = 48) -> str:
+def histogram_sketch(vol, bins: int = 48) -> str:
     """One line of block characters: log-scaled histogram of the voxel values."""
-    sample = data.ravel()[:: max(1, data.size // 4_000_000)]  # enough for a sketch
-    counts, _ = np.histogram(sample, bins=bins)
+    counts, _ = vol.histogram(bins)
     levels = " ▁▂▃▄▅▆▇█"
     logc = np.log1p(counts.astype(np.float64))
     top = logc.max() or 1.0

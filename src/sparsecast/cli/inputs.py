@@ -14,20 +14,24 @@ __all__ = ["load_input", "make_tf", "orbit_frame", "orbit_angles"]
 
 
 def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str],
-               allow_outside: bool = False, orientation: Optional[str] = None):
+               allow_outside: bool = False, orientation: Optional[str] = None, *, lazy: Optional[bool] = None,
+               memory_limit: Optional[str] = None, level: Optional[str] = None):
     """The volume in ``file`` (raw layout and spacing from the options), or the built-in
     demo when no file is given.
 
     ``allow_outside`` (``--allow-outside-data``) lets a detached NRRD header name a data
     file outside its folder; the viewer never passes it (it serves what it reads).
     ``orientation`` (``--orientation``) sets the axis codes, e.g. for a file that lost them.
+    ``lazy``, ``memory_limit`` and ``level`` (``--lazy``, ``--memory-limit``, ``--level``) are
+    :func:`~sparsecast.io.load_volume`'s: bricks read on demand, their budget, an OME-Zarr level.
     """
     from ..datasets import demo_volume
     from ..io import load_volume
 
     if file is None:
         given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing),
-                                    ("--orientation", orientation)) if v]
+                                    ("--orientation", orientation), ("--lazy", lazy), ("--memory-limit", memory_limit),
+                                    ("--level", level)) if v]
         if given:  # silently ignoring them would render the demo as if they applied
             raise ParameterError(
                 f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
@@ -45,6 +49,12 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
         from ..axes import check_orientation
 
         kw["orientation"] = check_orientation(orientation, "--orientation")
+    if lazy is not None:
+        kw["lazy"] = lazy
+    if memory_limit:
+        kw["memory_limit"] = memory_limit
+    if level is not None:
+        kw["level"] = int(level) if level.isdigit() else level
     return load_volume(file, allow_outside=allow_outside, **kw)
 
 

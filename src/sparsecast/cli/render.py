@@ -13,8 +13,8 @@ from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
-    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, OutputOpt, ProjectionOpt, SizeOpt,
-    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
+    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, OutputOpt,
+    ProjectionOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame
@@ -71,6 +71,9 @@ def render(
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
     orientation: OrientationOpt = None,
+    lazy: LazyOpt = None,
+    memory_limit: MemoryLimitOpt = None,
+    level: LevelOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
@@ -114,7 +117,8 @@ def render(
                       load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
         return
     c0 = compile_seconds()
-    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation)
+    vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation, lazy=lazy,
+                     memory_limit=memory_limit, level=level)
     frame = orbit_frame(vol, file, up, view)
     tfn = make_tf(tf, vol, tf_range, threshold)
     if tfn.is_transparent:

@@ -9,8 +9,8 @@ import typer
 from .._util.checks import as_int
 from ..errors import ParameterError
 from .app import (
-    CellOpt, DimsOpt, DtypeOpt, FileArg, OrientationOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt,
-    app, err, out, warn,
+    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, SpacingOpt, TfOpt,
+    TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame
 
@@ -41,6 +41,9 @@ def view(
     dtype: DtypeOpt = None,
     spacing: SpacingOpt = None,
     orientation: OrientationOpt = None,
+    lazy: LazyOpt = None,
+    memory_limit: MemoryLimitOpt = None,
+    level: LevelOpt = None,
 ) -> None:
     """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices and
     render modes (isovalue slider), clip, show or hide labels (--tf labels), step through
@@ -68,7 +71,8 @@ def view(
         series = open_series(file, dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
         vol = series[series.step(time_step)]
     else:
-        vol = load_input(file, dims, dtype, spacing, orientation=orientation)
+        vol = load_input(file, dims, dtype, spacing, orientation=orientation, lazy=lazy, memory_limit=memory_limit,
+                         level=level)
     frame = orbit_frame(vol, file, up, view)
     # A series: one TF over the range of every step unless --tf-range fixes it.
     tfn = make_tf(tf, vol, tf_range, threshold,

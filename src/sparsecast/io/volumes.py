@@ -20,7 +20,7 @@ import numpy as np
 from .._util.atomic import atomic_path
 from .._util.checks import fail, one_of
 from ..axes import check_orientation
-from ..errors import FileFormatError, ParameterError
+from ..errors import FileFormatError, ParameterError, SparsecastError
 from ..volume import Volume
 from .formats import FORMATS, READ_SUFFIXES, WRITE_SUFFIXES
 from .files import require_regular_file
@@ -28,6 +28,10 @@ from .names import stem_of, suffix_of
 from .raw import RAW_DTYPES, parse_raw_name
 from .reading import Read
 from .tiff import read_tiff_dir
+from .budget import memory_limit as default_memory_limit
+from .nrrd import EncodedPayloadError
+from .sources import is_lazy_path, is_zarr_dir, open_source, split_hdf5_path
+from ..storage import BrickedVolume, parse_memory
 
 __all__ = [
     "load_volume",
@@ -86,8 +90,14 @@ def load_volume(
     nonfinite: Literal["raise", "replace"] = "raise",
     allow_outside: bool = False,
     orientation: str | tuple[str, str, str] | None = None,
+    lazy: bool | None = None,
+    memory_limit: int | str | None = None,
+    level: int | str | None = None,
+    brick_size: int = 8,
+    background: float = 0.0,
+    progress=None,
 ) -> Volume:
-    """Load a scalar volume from a file, choosing the reader from the file name.
+    """Load a scalar volume from a file or store, choosing the reader from the name.
 
     Parameters
     ----------
@@ -122,6 +132,21 @@ def load_volume(
         ``+i, +j, +k`` point in the patient), e.g. for a file that lost them (default:
         NRRD ``space`` with ``space directions``, NIfTI sform/qform when its code is set;
         other formats store none).
+    lazy : bool, optional
+        Return a :class:`~sparsecast.storage.BrickedVolume` that reads bricks from the
+        file on demand (Zarr, OME-Zarr, ``file.h5:/dataset``, ``.npy``, raw, raw-encoded
+        NRRD) instead of a dense :class:`Volume`. Default: lazy when the data is larger
+        than ``memory_limit`` (or, without one, than :func:`~.budget.memory_limit`, half
+        the physical memory); Zarr and HDF5 inputs read into memory otherwise.
+    memory_limit : int or str, optional
+        Bytes a lazy volume's resident bricks may take (``"2GB"``); also the size above
+        which ``lazy=None`` goes lazy.
+    level : int or str, optional
+        OME-Zarr: the resolution level (index or path); default the finest.
+    brick_size, background : optional
+        A lazy volume's bricks (8^3 cells by default) and the value of absent bricks (0).
+    progress : bool or callable, optional
+        A lazy volume's statistics pass: a progress bar (True) or ``progress(done, total)``.
 
     Returns
     -------
@@ -156,6 +181,27 @@ def load_volume(
     >>> vol = load_volume("ct.raw", dims=(512, 512, 300), dtype="int16",
     ...                   byte_order="big", spacing=(0.5, 0.5, 1.0))  # doctest: +SKIP
     """
+    if lazy not in (None, True, False):
+        raise fail("lazy", "True, False or None", lazy)
+    budget = parse_memory(memory_limit)
+    if split_hdf5_path(path) is not None or is_lazy_path(path) and (lazy is not False or _store_only(path)):
+        source = _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy)
+        if source is not None:
+            wants_lazy = lazy if lazy is not None else source.nbytes > (budget or default_memory_limit())
+            if wants_lazy:
+                sp = spacing if spacing is not None else source.spacing
+                org = origin if origin is not None else source.origin
+                return BrickedVolume(source.array, sp, org, name=source.name, brick_size=brick_size,
+                                     background=background, memory_limit=budget, nonfinite=nonfinite,
+                                     orientation=orientation if orientation is not None else source.orientation,
+                                     progress=progress)
+            if _store_only(path):  # Zarr / HDF5 that fits: read it into a dense volume
+                sp = spacing if spacing is not None else source.spacing
+                org = origin if origin is not None else source.origin
+                return _make_volume(source.array[:, :, :], sp, org, source.path, source.name, nonfinite,
+                                    orientation if orientation is not None else source.orientation)
+    elif level is not None:
+        raise ParameterError(f"level: {str(path)!r} has a single resolution level; level= applies to OME-Zarr images")
     p = _as_path(path)
     _check_exists(p)
     one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
@@ -195,6 +241,31 @@ def load_volume(
     org = origin if origin is not None else (read.origin if read.origin is not None else 0.0)
     return _make_volume(read.data, sp, org, p, name, nonfinite,
                         orientation if orientation is not None else read.orientation)
+
+
+def _store_only(path) -> bool:
+    """Zarr stores and HDF5 files: formats only :func:`~.sources.open_source` reads."""
+    if split_hdf5_path(path) is not None:
+        return True
+    p = Path(os.fspath(path))
+    return is_zarr_dir(p) or suffix_of(p) in (".zarr", ".h5", ".hdf5")
+
+
+def _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy):
+    """The lazy source of ``path``, or None where the dense reader should take it: a gzip
+    NRRD, or a file the source cannot open when laziness was not asked for (``lazy=True``
+    and Zarr / HDF5 raise the source's error)."""
+    try:
+        return open_source(path, level=level, dims=dims, dtype=dtype, byte_order=byte_order,
+                           header_offset=header_offset or 0, allow_outside=bool(allow_outside))
+    except EncodedPayloadError:
+        if lazy:
+            raise
+        return None
+    except SparsecastError:
+        if lazy or _store_only(path):
+            raise
+        return None  # the dense reader has the same complaint, in the words tests and users know
 
 
 def save_volume(volume: Volume, path: PathLike, *, compress: bool = True) -> Path:

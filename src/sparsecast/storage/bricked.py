@@ -44,11 +44,12 @@ from ..errors import ParameterError, VolumeDataError
 from ..kernels.bricked import BrickedVoxels, gather_bricks
 from ..kernels.parallel import parallel_section
 from ..volume import SUPPORTED_DTYPES, BrickLabels, BrickStats, Volume
+from .scan import scan
 
 __all__ = ["BrickedVolume", "MemoryBudgetError", "parse_memory"]
 
-#: voxels a z-slab read covers at most when statistics are computed from a source
-_SLAB_VOXELS = 1 << 26
+#: voxels a z-slab of :meth:`BrickedVolume.to_dense` reads at a time
+_SLAB_VOXELS = 1 << 24
 
 
 class MemoryBudgetError(ParameterError):
@@ -125,6 +126,8 @@ class BrickedVolume(Volume):
     eager : bool, optional
         Load every stored brick at once (then the source is no longer needed).
         Default: when ``source`` is an in-memory ndarray and no limit is set.
+    progress : bool or callable, optional
+        Progress of the statistics pass over a lazy source (see :func:`.scan.scan`).
 
     Examples
     --------
@@ -149,6 +152,7 @@ class BrickedVolume(Volume):
         nonfinite: str = "raise",
         orientation=None,
         eager: bool | None = None,
+        progress=None,
     ) -> None:
         shape = tuple(int(n) for n in getattr(source, "shape", ()))
         if len(shape) != 3:
@@ -166,6 +170,8 @@ class BrickedVolume(Volume):
         self._shape = shape
         self._dtype = _storage_dtype(source.dtype, name)
         self._nonfinite = nonfinite
+        self._progress = progress
+        self._histogram: tuple[np.ndarray, np.ndarray] | None = None
         self.brick_size = B
         self.background = float(background)
         self.memory_limit = parse_memory(memory_limit)
@@ -334,6 +340,27 @@ class BrickedVolume(Volume):
         return out
 
     # -- statistics -----------------------------------------------------------
+    def histogram(self, bins: int = 64) -> tuple[np.ndarray, np.ndarray]:
+        """``(counts, edges)`` over :attr:`value_range`: exact when the statistics came
+        from a scan of the source (rebinned to ``bins`` when they divide), else from the
+        stored bricks (each voxel of an absent brick counted as the background)."""
+        lo, hi = self.value_range
+        if not hi > lo:
+            hi = lo + 1.0
+        if self._histogram is not None and len(self._histogram[0]) % bins == 0:
+            counts = self._histogram[0].reshape(bins, -1).sum(axis=1)
+            return counts, np.linspace(lo, hi, bins + 1)
+        counts = np.zeros(bins, np.int64)
+        resident = np.flatnonzero(self._pages >= 0)
+        if resident.size:
+            inner = self._pool[self._pages[resident]][:, 1:-2, 1:-2, 1:-2]  # cells' voxels, apron off
+            counts += np.histogram(inner, bins=bins, range=(lo, hi))[0]
+        B3 = self.brick_size ** 3
+        absent = int(self._stored.size - self._stored_ids.size)
+        if absent:
+            counts += np.histogram([self.background], bins=bins, range=(lo, hi))[0] * (absent * B3)
+        return counts, np.linspace(lo, hi, bins + 1)
+
     def brick_stats(self, brick_size: int = 8) -> BrickStats:
         """Per-brick min/max with apron; ``brick_size`` a multiple or a divisor of ``B``.
 
@@ -424,27 +451,17 @@ class BrickedVolume(Volume):
         return block
 
     def _scan_stats(self) -> BrickStats:
-        """``brick_stats(B)`` of the source, read in z-slabs (no full-size temporary)."""
+        """``brick_stats(B)`` of the source: the dense kernel for an in-memory array, else
+        one chunk-parallel pass (:func:`.scan.scan`) that also keeps a histogram."""
         src = self._source
         B = self.brick_size
         if isinstance(src, np.ndarray) and src.dtype in SUPPORTED_DTYPES and not isinstance(src, np.memmap):
-            stats = Volume(src, name=self.name, nonfinite=self._nonfinite).brick_stats(B)
-            return stats
-        t0 = time.perf_counter()
-        nz, ny, nx = self._shape
-        nbz, nby, nbx = self._grid
-        vmin = np.full((nbz, nby, nbx), np.inf)
-        vmax = np.full((nbz, nby, nbx), -np.inf)
-        layers = max(1, _SLAB_VOXELS // (ny * nx * B))
-        for bz0 in range(0, nbz, layers):
-            bz1 = min(nbz, bz0 + layers)
-            z0 = max(bz0 * B - 1, 0)
-            z1 = min(bz1 * B + 1, nz - 1) + 1
-            slab = Volume(self._read(z0, z1, 0, ny, 0, nx), name=self.name, nonfinite="replace")
-            part = _slab_bricks(slab, B, z0, bz0, bz1)
-            vmin[bz0:bz1] = part[0]
-            vmax[bz0:bz1] = part[1]
-        return BrickStats(B, vmin, vmax, (time.perf_counter() - t0) * 1e3)
+            return Volume(src, name=self.name, nonfinite=self._nonfinite).brick_stats(B)
+        found = scan(src, B, nonfinite=self._nonfinite, progress=self._progress)
+        self.loads["bytes_read"] += found.shape[0] * found.shape[1] * found.shape[2] * found.dtype.itemsize
+        self._histogram = (found.counts, found.edges) if found.counts is not None else None
+        self._range = found.value_range  # finite range: what "replace" substitutes
+        return found.brick_stats()
 
     def _sub_brick_stats(self, b: int) -> tuple[np.ndarray, np.ndarray]:
         B = self.brick_size
@@ -577,22 +594,3 @@ def _reduce(a: np.ndarray, f: int, op, shape) -> np.ndarray:
     a = np.pad(a, pad, constant_values=fill)
     nz, ny, nx = shape
     return op.reduce(op.reduce(op.reduce(a.reshape(nz, f, ny, f, nx, f), axis=5), axis=3), axis=1)
-
-
-def _slab_bricks(slab: Volume, B: int, z0: int, bz0: int, bz1: int) -> tuple[Any, Any]:
-    """Brick ranges of layers ``bz0 .. bz1-1`` from a slab starting at global plane ``z0``.
-
-    The slab covers planes ``[max(bz0*B - 1, 0), min(bz1*B + 1, nz-1)]``. Brick
-    statistics of the slab itself would start brick 0 at its first plane, which is
-    the apron plane ``bz0*B - 1`` when ``bz0 > 0``. ``B - 1`` copies of that plane in
-    front make the slab's brick 1 the layer ``bz0``, with the apron plane in its
-    window (brick 0 is made of copies and dropped); copies change no min or max.
-    """
-    d = slab.data
-    n = bz1 - bz0
-    if bz0 == 0:
-        st = Volume(np.ascontiguousarray(d), nonfinite="replace").brick_stats(B)
-        return st.vmin[:n], st.vmax[:n]
-    d = np.concatenate([np.repeat(d[:1], B - 1, axis=0), d], axis=0)
-    st = Volume(d, nonfinite="replace").brick_stats(B)
-    return st.vmin[1:n + 1], st.vmax[1:n + 1]

@@ -217,12 +217,15 @@ class ViewerData:
             self.time = self.series.step(self.time)
         if (self.tf is None) == (self.labels is None):
             raise ParameterError("tf: expected a TF spec for a scalar volume or a label table, not both")
-        data = self.volume.data
         lo, hi = self.series.value_range if self.series is not None else self.volume.value_range
         if not hi > lo:
             hi = lo + 1.0
-        sample = data.ravel()[:: max(1, data.size // 4_000_000)]
-        counts, _ = np.histogram(sample, bins=HISTOGRAM_BINS, range=(lo, hi))
+        if self.series is None:
+            counts, _ = self.volume.histogram(HISTOGRAM_BINS)
+        else:  # the series' range: bin the first step's voxels over it
+            data = self.volume.data
+            sample = data.ravel()[:: max(1, data.size // 4_000_000)]
+            counts, _ = np.histogram(sample, bins=HISTOGRAM_BINS, range=(lo, hi))
         self.histogram = counts.astype(np.int64)
         self.histogram_range = (float(lo), float(hi))
         if self.iso is None:
