@@ -284,6 +284,8 @@ def convert_volume(
     try:
         if ome:
             root = zarr.open_group(str(tmp), mode="w-", zarr_format=3)
+            # Every chunk is written: an absent one is a loss (see io.sources, missing chunks).
+            root.attrs[SOURCE_ATTRS] = {"complete": True}
             targets = [root.create_array(str(i), shape=s, chunks=tuple(min(c, n) for c, n in zip(chunk3, s)),
                                          dtype=dtype, compressors=compressor, fill_value=0,
                                          config={"write_empty_chunks": True})
@@ -292,7 +294,7 @@ def convert_volume(
             targets = [zarr.create_array(str(tmp), shape=shape, chunks=chunk3, dtype=dtype, compressors=compressor,
                                          fill_value=0, config={"write_empty_chunks": True},
                                          attributes={SOURCE_ATTRS: {"spacing": sp.tolist(), "origin": org.tolist(),
-                                                                    "name": source.name}})]
+                                                                    "name": source.name, "complete": True}})]
         level0 = targets[0]
         block = _blocks(shape, chunk3, dtype.itemsize, BLOCK_BYTES)
 

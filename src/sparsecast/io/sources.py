@@ -19,12 +19,15 @@ a source.
 
 Missing and corrupt chunks
 --------------------------
-A Zarr chunk that is absent from the store reads as the fill value in ``zarr``; a
-volume whose chunk file was lost would then render a hole without a word. So a read
-checks that the chunks it touches exist and raises naming the chunk and the store
-(``missing_chunks="fill"`` accepts absent chunks: stores written with
-``write_empty_chunks=False``, zarr's default, leave empty chunks out). A chunk that
-fails to decode is found by reading the touched chunks one by one, and named.
+A Zarr chunk that is absent from the store reads as the fill value in ``zarr``: that
+is the format's meaning, and stores written with ``write_empty_chunks=False`` (zarr's
+default) leave every empty chunk of a sparse volume out. But a volume whose chunk file
+was lost would then render a hole without a word. ``missing_chunks="auto"`` (default)
+tells the two apart by who wrote the store: ``sparsecast convert`` writes every chunk
+and marks the store complete (``attrs["sparsecast"]["complete"]``), so there an absent
+chunk raises, naming the chunk and the store; elsewhere it reads as the fill value.
+``"raise"`` and ``"fill"`` force either. A chunk that fails to decode is found by
+reading the touched chunks one by one, and named.
 """
 
 from __future__ import annotations
@@ -227,8 +230,8 @@ class _Voxels:
         self._check(full, chunks)
         try:
             return _native(self._array[full])
-        except SparsecastError:
-            raise
+        except (SparsecastError, MemoryError):
+            raise  # out of memory is no fault of the store's
         except Exception as exc:  # noqa: BLE001 - boundary: name the chunk that fails
             raise self._read_failure(full, chunks, exc) from exc
 
@@ -344,7 +347,7 @@ def open_source(
     path: str | os.PathLike,
     *,
     level: int | str | None = None,
-    missing_chunks: Literal["raise", "fill"] = "raise",
+    missing_chunks: Literal["auto", "raise", "fill"] = "auto",
     dims: tuple[int, int, int] | None = None,
     dtype: str | np.dtype | None = None,
     byte_order: Literal["little", "big"] = "little",
@@ -362,8 +365,10 @@ def open_source(
     level : int or str, optional
         OME-Zarr: the level, by index into ``levels`` or by its path (``"2"``).
         Default: the finest (level 0).
-    missing_chunks : {"raise", "fill"}, optional
-        Zarr: an absent chunk raises (default) or reads as the fill value.
+    missing_chunks : {"auto", "raise", "fill"}, optional
+        Zarr: an absent chunk raises, or reads as the fill value; ``"auto"`` (default)
+        raises in stores ``sparsecast convert`` wrote (complete by construction) and
+        fills elsewhere (see the module docstring).
     dims, dtype, byte_order, header_offset : optional
         Raw files: the layout, as :func:`~.volumes.load_volume` takes it.
     allow_outside : bool, optional
@@ -384,7 +389,7 @@ def open_source(
         An OME-Zarr level that does not exist (listing the levels), ``level`` for a
         single-resolution source, raw options for a non-raw source, axes t/c of size > 1.
     """
-    one_of(missing_chunks, "missing_chunks", ("raise", "fill"), expected="'raise' or 'fill'")
+    one_of(missing_chunks, "missing_chunks", ("auto", "raise", "fill"), expected="'auto', 'raise' or 'fill'")
     if isinstance(path, os.PathLike):
         path = os.fspath(path)
     if not isinstance(path, str) or not path or "\x00" in path:
@@ -548,6 +553,9 @@ def _open_zarr(p: Path, level, missing: str) -> Source:
                               f"v2 or v3 array or group")
     node = _guard(where, zarr.open, store=str(p), mode="r")
     name = stem_of(p)
+    if missing == "auto":
+        ours = node.attrs.get(SOURCE_ATTRS)
+        missing = "raise" if isinstance(ours, dict) and ours.get("complete") else "fill"
     if isinstance(node, zarr.Group):
         attrs = dict(node.attrs)
         if "multiscales" in attrs or "multiscales" in attrs.get("ome", {}):

@@ -95,6 +95,7 @@ def load_volume(
     level: int | str | None = None,
     brick_size: int = 8,
     background: float = 0.0,
+    missing_chunks: Literal["auto", "raise", "fill"] = "auto",
     progress=None,
 ) -> Volume:
     """Load a scalar volume from a file or store, choosing the reader from the name.
@@ -145,6 +146,11 @@ def load_volume(
         OME-Zarr: the resolution level (index or path); default the finest.
     brick_size, background : optional
         A lazy volume's bricks (8^3 cells by default) and the value of absent bricks (0).
+    missing_chunks : {"auto", "raise", "fill"}, optional
+        Zarr: a chunk absent from the store is an error naming it, or reads as the fill
+        value (zarr's meaning; ``write_empty_chunks=False``, zarr's default, leaves empty
+        chunks out). ``"auto"`` (default): an error in stores ``sparsecast convert`` wrote
+        (it writes every chunk), the fill value elsewhere.
     progress : bool or callable, optional
         A lazy volume's statistics pass: a progress bar (True) or ``progress(done, total)``.
 
@@ -185,7 +191,8 @@ def load_volume(
         raise fail("lazy", "True, False or None", lazy)
     budget = parse_memory(memory_limit)
     if split_hdf5_path(path) is not None or is_lazy_path(path) and (lazy is not False or _store_only(path)):
-        source = _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy)
+        source = _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy,
+                             missing_chunks)
         if source is not None:
             wants_lazy = lazy if lazy is not None else source.nbytes > (budget or default_memory_limit())
             if wants_lazy:
@@ -251,13 +258,14 @@ def _store_only(path) -> bool:
     return is_zarr_dir(p) or suffix_of(p) in (".zarr", ".h5", ".hdf5")
 
 
-def _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy):
+def _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy, missing_chunks):
     """The lazy source of ``path``, or None where the dense reader should take it: a gzip
     NRRD, or a file the source cannot open when laziness was not asked for (``lazy=True``
     and Zarr / HDF5 raise the source's error)."""
     try:
         return open_source(path, level=level, dims=dims, dtype=dtype, byte_order=byte_order,
-                           header_offset=header_offset or 0, allow_outside=bool(allow_outside))
+                           header_offset=header_offset or 0, allow_outside=bool(allow_outside),
+                           missing_chunks=missing_chunks)
     except EncodedPayloadError:
         if lazy:
             raise

@@ -38,7 +38,9 @@ __all__ = [
     "bricked_nearest",
     "bricked_gradient",
     "bricked_offset",
+    "gather_brick",
     "gather_bricks",
+    "gather_bricks_serial",
 ]
 
 class BrickedVoxels(NamedTuple):
@@ -215,6 +217,30 @@ def bricked_offset(pages, shift, nbx, nby, bz, by, bx, k, j):
     return (((slot * e + (k - (bz << shift) + 1)) * e) + (j - (by << shift) + 1)) * e + 1 - (bx << shift)
 
 
+@njit(cache=True, nogil=True)
+def gather_brick(block, z0, y0, x0, bz, by, bx, slot, brick, nz, ny, nx, pool):
+    """Copy one brick's stored window out of ``block`` into ``pool[slot]`` (see :func:`gather_bricks`)."""
+    e = brick + 3
+    gz = bz * brick - 1
+    gy = by * brick - 1
+    gx = bx * brick - 1
+    for c in range(e):
+        k = min(max(gz + c, 0), nz - 1) - z0
+        for r in range(e):
+            j = min(max(gy + r, 0), ny - 1) - y0
+            for q in range(e):
+                i = min(max(gx + q, 0), nx - 1) - x0
+                pool[slot, c, r, q] = block[k, j, i]
+
+
+@njit(cache=True, nogil=True)
+def gather_bricks_serial(block, z0, y0, x0, bz, by, bx, slots, brick, nz, ny, nx, pool):
+    """:func:`gather_bricks` on the calling thread, without the GIL: for reader threads,
+    which must not each start a team of Numba's parallel threads."""
+    for n in range(bz.shape[0]):
+        gather_brick(block, z0, y0, x0, bz[n], by[n], bx[n], slots[n], brick, nz, ny, nx, pool)
+
+
 @njit(cache=True, parallel=True)
 def gather_bricks(block, z0, y0, x0, bz, by, bx, slots, brick, nz, ny, nx, pool):
     """Copy the stored windows of some bricks out of a block of voxels into their slots.
@@ -238,16 +264,5 @@ def gather_bricks(block, z0, y0, x0, bz, by, bx, slots, brick, nz, ny, nx, pool)
     pool : (n_slots, E, E, E) ndarray
         Written in place.
     """
-    e = brick + 3
     for n in prange(bz.shape[0]):
-        s = slots[n]
-        gz = bz[n] * brick - 1
-        gy = by[n] * brick - 1
-        gx = bx[n] * brick - 1
-        for c in range(e):
-            k = min(max(gz + c, 0), nz - 1) - z0
-            for r in range(e):
-                j = min(max(gy + r, 0), ny - 1) - y0
-                for q in range(e):
-                    i = min(max(gx + q, 0), nx - 1) - x0
-                    pool[s, c, r, q] = block[k, j, i]
+        gather_brick(block, z0, y0, x0, bz[n], by[n], bx[n], slots[n], brick, nz, ny, nx, pool)

@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 
 from .._util.checks import as_int, fail
-from ..errors import ParameterError, VolumeDataError
-from ..kernels.bricked import BrickedVoxels, gather_bricks
+from ..errors import ParameterError, SparsecastError, VolumeDataError
+from ..kernels.bricked import BrickedVoxels, gather_bricks, gather_bricks_serial
 from ..kernels.parallel import parallel_section
 from ..volume import SUPPORTED_DTYPES, BrickLabels, BrickStats, Volume
 from .scan import scan
@@ -426,13 +426,15 @@ class BrickedVolume(Volume):
             f"memory_limit: {self.name} needs {n_needed} bricks of {self.brick_size}^3 cells "
             f"({need / 2**20:.1f} MiB) resident for this transfer function, but memory_limit="
             f"{self.memory_limit} bytes ({(self.memory_limit or 0) / 2**20:.1f} MiB) holds "
-            f"{self._capacity}; raise memory_limit to at least {need / 2**20:.0f} MiB or make the TF sparser"
+            f"{self._capacity}; raise memory_limit to at least {math.ceil(need / 2**20 * 10) / 10:.1f} MiB or make the TF sparser"
         )
 
     def _read(self, z0, z1, y0, y1, x0, x1) -> np.ndarray:
         """Voxels ``[z0, z1) x [y0, y1) x [x0, x1)`` of the source, in the storage dtype."""
         try:
             block = np.asarray(self._source[z0:z1, y0:y1, x0:x1])
+        except (SparsecastError, MemoryError):
+            raise  # the source's own error names its chunk; memory is no fault of the source's
         except Exception as exc:  # a reader's own error: name the store and the region
             raise VolumeDataError(
                 f"{self.name}: reading voxels z {z0}:{z1}, y {y0}:{y1}, x {x0}:{x1} failed: "
@@ -503,7 +505,13 @@ class BrickedVolume(Volume):
         have = self._pool.shape[0]
         if n_slots <= have:
             return
-        n = min(self._capacity, max(n_slots, int(have * 1.5) + 16))
+        if self.memory_limit is not None:
+            # The budget is the pool's size: take it at once (zeros are mapped lazily, so
+            # untouched slots cost no resident memory) rather than growing by copies, which
+            # would hold the old and the new pool together, up to twice the budget.
+            n = self._capacity
+        else:
+            n = min(self._capacity, max(n_slots, int(have * 1.5) + 16))
         e = self.brick_size + 3
         pool = np.zeros((n, e, e, e), self._dtype)
         pool[:have] = self._pool
@@ -573,9 +581,8 @@ class BrickedVolume(Volume):
             y1 = min(int(by[g].max()) * B + B + 1, ny - 1) + 1
             x1 = min(int(bx[g].max()) * B + B + 1, nx - 1) + 1
             block = self._read(z0, z1, y0, y1, x0, x1)  # reads overlap across threads
-            with parallel_section():
-                gather_bricks(block, z0, y0, x0, bz[g], by[g], bx[g], slots[g].astype(np.int64), B, nz, ny, nx,
-                              self._pool)
+            gather_bricks_serial(block, z0, y0, x0, bz[g], by[g], bx[g], slots[g].astype(np.int64), B, nz, ny, nx,
+                                 self._pool)
 
         with ThreadPoolExecutor(max_workers=2) as pool:
             list(pool.map(one, groups))
