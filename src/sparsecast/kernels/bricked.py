@@ -27,10 +27,19 @@ on the layout.
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
+from numba.core.errors import NumbaIRAssumptionWarning
+
+# Inlining the bricked sampler into the iso modes' inlined sample-at-t helper trips a
+# pedantic scope check in Numba's IR inliner (the inlined result variable is reported
+# "not in scope"); the compiled code is right (tests/storage: iso modes equal dense), and
+# not inlining costs the iso modes about 2x. Silence exactly that report.
+warnings.filterwarnings("ignore", category=NumbaIRAssumptionWarning,
+                        message=r"variable '_sample__locals___lambda__\w*bricked_[\w.]*' is not in scope")
 
 __all__ = [
     "BrickedVoxels",
@@ -102,7 +111,7 @@ def _lerp8(pool, base, si, sj, sk, fx, fy, fz):
     return c0 + fz * (c1 - c0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bricked_trilinear(vox, x, y, z):
     """Trilinear value at index-space point ``(x, y, z)``; equal to the dense one."""
     i0, si, fx = _cell(x, vox.nx)
@@ -114,14 +123,16 @@ def bricked_trilinear(vox, x, y, z):
     bz = k0 >> s
     b = (bz * vox.nby + by) * vox.nbx + bx
     slot = np.int64(vox.pages[b])
-    if slot < 0:
-        return vox.fill[b]
-    e = (1 << s) + 3
-    base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
-    return _lerp8(vox.pool, base, si, sj * e, sk * e * e, fx, fy, fz)
+    # Inlined (worth ~25 % against a call per sample), with one return.
+    v = vox.fill[b]
+    if slot >= 0:
+        e = (1 << s) + 3
+        base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
+        v = _lerp8(vox.pool, base, si, sj * e, sk * e * e, fx, fy, fz)
+    return v
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bricked_nearest(vox, x, y, z):
     """Value of the voxel nearest to ``(x, y, z)``; equal to :func:`..sampler.nearest`.
 
@@ -140,13 +151,14 @@ def bricked_nearest(vox, x, y, z):
     bz = k0 >> s
     b = (bz * vox.nby + by) * vox.nbx + bx
     slot = np.int64(vox.pages[b])
-    if slot < 0:
-        return vox.fill[b]
-    i = min(max(int(x + 0.5), 0), nx - 1)
-    j = min(max(int(y + 0.5), 0), ny - 1)
-    k = min(max(int(z + 0.5), 0), nz - 1)
-    e = (1 << s) + 3
-    return float(vox.pool[(((slot * e + (k - (bz << s) + 1)) * e) + (j - (by << s) + 1)) * e + (i - (bx << s) + 1)])
+    v = vox.fill[b]
+    if slot >= 0:  # one return (see bricked_trilinear)
+        i = min(max(int(x + 0.5), 0), nx - 1)
+        j = min(max(int(y + 0.5), 0), ny - 1)
+        k = min(max(int(z + 0.5), 0), nz - 1)
+        e = (1 << s) + 3
+        v = float(vox.pool[(((slot * e + (k - (bz << s) + 1)) * e) + (j - (by << s) + 1)) * e + (i - (bx << s) + 1)])
+    return v
 
 
 @njit(cache=True, inline="always")
