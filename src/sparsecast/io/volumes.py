@@ -189,6 +189,7 @@ def load_volume(
     """
     if lazy not in (None, True, False):
         raise fail("lazy", "True, False or None", lazy)
+    path = str(_as_path(path))  # one check of the path for both readers
     budget = parse_memory(memory_limit)
     if split_hdf5_path(path) is not None or is_lazy_path(path) and (lazy is not False or _store_only(path)):
         source = _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy,

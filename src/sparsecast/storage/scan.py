@@ -126,11 +126,11 @@ def _array_of(volume) -> tuple[Any, str, tuple[int, ...] | None]:
 
 
 class _Sliced:
-    """An ndarray seen by dask as an opaque array-like: blocks are views taken when a task
-    runs (``from_array`` copies every block of an ndarray up front, the whole array)."""
+    """An ndarray (or a minimal array-like) seen by dask as an opaque array-like: blocks are
+    read when a task runs (``from_array`` copies every block of an ndarray up front)."""
 
-    def __init__(self, array: np.ndarray) -> None:
-        self.shape, self.dtype, self.ndim = array.shape, array.dtype, array.ndim
+    def __init__(self, array) -> None:
+        self.shape, self.dtype, self.ndim = tuple(array.shape), np.dtype(array.dtype), len(array.shape)
         self._array = array
 
     def __getitem__(self, key) -> np.ndarray:
@@ -269,8 +269,10 @@ def scan(
     if isinstance(array, da.Array):
         darr = array
     else:
-        if isinstance(array, np.ndarray):
-            array = _Sliced(array)  # dask would copy an ndarray's blocks when the graph is built
+        if isinstance(array, np.ndarray) or not hasattr(array, "ndim"):
+            # dask would copy an ndarray's blocks when the graph is built, and needs
+            # ``ndim``, which a minimal array-like (shape, dtype, slicing) may lack
+            array = _Sliced(array)
         block = scan_blocks(shape, dtype.itemsize, native)
         # lock=False: the sources are read-only and their readers thread-safe (h5py
         # serialises itself); asarray=False keeps the source's own reads lazy.
