@@ -50,3 +50,15 @@ def test_field_is_the_same_whatever_the_slab_and_background_is_zero():
     np.testing.assert_array_equal(np.concatenate([s for _, s in pieces]), whole)
     assert whole.dtype == np.float32 and whole.min() == 0.0 and whole.max() > 1.0
     assert 0.001 < np.count_nonzero(whole) / whole.size < 0.2  # sparse, not empty
+
+
+def test_written_stores_load_lazily_with_empty_chunks(tmp_path):
+    """Chunks of background are written too: a lazy source refuses a store with absent chunks."""
+    import sparsecast as sc
+
+    paths = scale.write_field(48, tmp_path, chunk=8)
+    vol = sc.load_volume(paths["zarr"], lazy=True)
+    dense = np.concatenate([s for _, s in scale.nbody_slabs(48)])
+    np.testing.assert_array_equal(vol.to_dense(), dense)
+    np.testing.assert_array_equal(sc.load_volume(paths["npy"]).data, dense)
+    np.testing.assert_array_equal(sc.load_volume(paths["raw"]).data, dense)

@@ -108,8 +108,9 @@ def _fits_on_disk(folder: Path, nbytes: int) -> bool:
     return 2 * nbytes <= shutil.disk_usage(folder).free // 3
 
 
-def write_field(n: int, folder: Path, kinds=KINDS) -> dict[str, Path]:
-    """Write the field of edge ``n`` as each of ``kinds`` that fits, slab by slab; ``{kind: path}``."""
+def write_field(n: int, folder: Path, kinds=KINDS, chunk: int = CHUNK) -> dict[str, Path]:
+    """Write the field of edge ``n`` as each of ``kinds`` that fits, slab by slab (Zarr chunks of
+    ``chunk``^3, every chunk written: lazy sources refuse a store with absent chunks); ``{kind: path}``."""
     import zarr
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -119,8 +120,9 @@ def write_field(n: int, folder: Path, kinds=KINDS) -> dict[str, Path]:
     z = npy = raw = None
     if "zarr" in kinds:
         paths["zarr"] = folder / f"nbody-{n}.zarr"
-        z = zarr.create_array(str(paths["zarr"]), shape=(n, n, n), chunks=(CHUNK,) * 3, dtype="float32",
-                              compressors=zarr.codecs.ZstdCodec(level=3), fill_value=0.0, overwrite=True)
+        z = zarr.create_array(str(paths["zarr"]), shape=(n, n, n), chunks=(chunk,) * 3, dtype="float32",
+                              compressors=zarr.codecs.ZstdCodec(level=3), fill_value=0.0, overwrite=True,
+                              config={"write_empty_chunks": True})
     if "npy" in kinds:
         paths["npy"] = folder / f"nbody-{n}.npy"
         npy = np.lib.format.open_memmap(paths["npy"], mode="w+", dtype=np.float32, shape=(n, n, n))
@@ -128,7 +130,7 @@ def write_field(n: int, folder: Path, kinds=KINDS) -> dict[str, Path]:
         paths["raw"] = folder / f"nbody-{n}_{n}x{n}x{n}_float32.raw"
         raw = open(paths["raw"], "wb")
     try:
-        for z0, slab in nbody_slabs(n):
+        for z0, slab in nbody_slabs(n, slab=chunk):
             if z is not None:
                 z[z0:z0 + len(slab)] = slab
             if npy is not None:
