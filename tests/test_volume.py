@@ -70,22 +70,30 @@ def test_brick_larger_than_the_volume_is_one_brick():
 
 def test_brick_kernel_warm_up_compiles_what_the_real_pass_runs(monkeypatch):
     """The first brick_stats compiles on a tiny array first (kept out of build_ms): that array
-    must have the Numba type of a Volume's voxels, read-only flag included, or the real
-    pass compiles again inside the timing."""
+    must have the Numba type of a Volume's voxels, read-only flag included, and the warm-up
+    must compile what the threaded slabs run, or the real pass compiles again inside the
+    timing."""
     import numba
 
     from sparsecast import volume as volume_module
-    from sparsecast.kernels.bricks import brick_minmax
+    from sparsecast.kernels import bricks
+    from sparsecast.kernels.windows import window_minmax
 
-    vol = Volume(np.arange(5 * 6 * 7, dtype=np.int16).reshape(5, 6, 7))
+    monkeypatch.setattr(bricks, "TASK_BYTES", 256)  # slabs on two threads
+    data = np.arange(40 * 30 * 20, dtype=np.int16).reshape(40, 30, 20)
+    vol = Volume(data)
     assert numba.typeof(volume_module._tiny_voxels(vol.dtype)) == numba.typeof(vol.data)
     monkeypatch.setattr(volume_module, "_WARM_DTYPES", set())
+    assert volume_module._warm_brick_kernel(vol.dtype) > 0
+    warm = set(window_minmax.signatures)
+    assert numba.typeof(vol.data[3:9]) in {sig[0] for sig in warm}
     stats = vol.brick_stats(4)
-    assert stats.compile_ms > 0
-    assert numba.typeof(vol.data) in [sig[0] for sig in brick_minmax.signatures]
-    again = Volume(vol.data.copy()).brick_stats(4)
-    assert again.compile_ms == 0.0  # once per dtype and process
-    np.testing.assert_array_equal(again.vmin, stats.vmin)
+    assert stats.compile_ms == 0.0  # once per dtype and process
+    assert set(window_minmax.signatures) == warm  # the real pass compiled nothing
+    ref = [np.empty(stats.shape), np.empty(stats.shape)]
+    bricks.brick_minmax(vol.data, 4, *stats.shape, *ref)
+    np.testing.assert_array_equal(stats.vmin, ref[0])
+    np.testing.assert_array_equal(stats.vmax, ref[1])
 
 
 # -- per-brick label sets (issue 19, label volumes) -------------------------------------

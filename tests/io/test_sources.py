@@ -258,3 +258,23 @@ def test_basic_indexing_only(tmp_path):
         src.array[[1, 2]]
     with pytest.raises(ParameterError, match="out of bounds"):
         src.array[37]
+
+
+@pytest.mark.parametrize("suffix", [".npy", "_20x18x16_int16.raw"])
+def test_a_dense_npy_or_raw_volume_maps_the_file(tmp_path, suffix):
+    """Within the memory budget, .npy and raw load as a dense Volume over a read-only memory
+    map of the file (no copy), equal to what was written."""
+    import mmap
+
+    data = np.random.default_rng(3).integers(-500, 500, (16, 18, 20)).astype(np.int16)
+    path = tmp_path / f"v{suffix}"
+    sc.save_volume(sc.Volume(data), path)
+    vol = sc.load_volume(path)
+    assert type(vol) is sc.Volume
+    np.testing.assert_array_equal(vol.data, data)
+    assert not vol.data.flags.writeable
+    base = vol.data
+    while getattr(base, "base", None) is not None and not isinstance(base, mmap.mmap):
+        base = base.base
+    assert isinstance(base, mmap.mmap)
+    assert vol.value_range == (float(data.min()), float(data.max()))

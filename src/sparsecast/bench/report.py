@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import FileFormatError
 from .._util.atomic import atomic_path
 
-__all__ = ["format_table", "format_summary", "format_features", "write_json", "load_records"]
+__all__ = ["format_table", "format_summary", "format_features", "format_scale", "write_json", "load_records"]
 
 
 def _fmt(v: Any, spec: str) -> str:
@@ -136,6 +136,41 @@ def format_features(records: list[dict[str, Any]]):
                       _fmt(r.get("speedup"), ".2f"), _fmt(r.get("max_abs_diff"), ".1e"))
     table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box, iso naive / index; "
                      "ratios of medians within one interleaved run")
+    return table
+
+
+def format_scale(records: list[dict[str, Any]]):
+    """The ``scale`` section (:mod:`.scale`) as a table, or None when the run has none: per
+    size and source kind, opening, statistics, time to first image and peak RSS, then one
+    row per index with its first build, rebuild and frame."""
+    from rich.table import Table
+
+    rows = [r for r in records if r.get("section") == "scale" and r.get("phase") in ("load", "render", "skipped")]
+    if not rows:
+        return None
+    table = Table(title="sparsecast bench: volumes larger than memory (one process per size and kind)")
+    for col in ("dataset", "kind", "storage", "index", "open ms", "stats G vox/s", "first image ms",
+                "build ms", "rebuild ms", "frame ms", "peak RSS MiB", "RSS / dense", "resident bricks",
+                "notes"):
+        table.add_column(col, justify="left" if col in ("dataset", "kind", "storage", "index", "notes") else "right")
+    for r in rows:
+        if r["phase"] == "load":
+            table.add_row(str(r.get("dataset")), str(r.get("kind")), str(r.get("storage")), "(open)",
+                          _fmt(r.get("open_ms"), ".0f"), _fmt(r.get("stats_gvox_s"), ".2f"),
+                          _fmt(r.get("first_image_ms"), ".0f"), "", "", "",
+                          _fmt((r.get("peak_rss") or 0) / 2**20, ".0f"), _fmt(r.get("rss_over_dense"), ".3f"),
+                          f"{r.get('resident_bricks')} / {r.get('bricks')}",
+                          f"occupancy {100 * (r.get('occupancy') or 0):.1f} %; auto: {r.get('first_index')}")
+        elif r["phase"] == "render":
+            table.add_row(str(r.get("dataset")), str(r.get("kind")), "", str(r.get("method")), "", "", "",
+                          _fmt(r.get("build_ms"), ".1f"), _fmt(r.get("rebuild_ms"), ".1f"),
+                          _fmt(r.get("ms"), ".1f"), "", "", "", f"{r.get('width')}x{r.get('height')}")
+        else:
+            table.add_row(str(r.get("dataset")), str(r.get("kind")), "", str(r.get("method")),
+                          *[""] * 9, str(r.get("reason") or "skipped"))
+    table.caption = ("open: load_volume (a lazy volume's statistics pass included); first image: load_volume "
+                     "to the first render(index='auto'); frame: median of the timed frames after a warm-up; "
+                     "peak RSS: getrusage of the case's own process")
     return table
 
 

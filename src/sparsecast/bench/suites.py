@@ -200,6 +200,13 @@ SUITES: dict[str, Suite] = {
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
               "CT/MR volumes (bench.features)", short="features section", duration="4 min", datasets=(), irt=False,
               sections=("features",)),
+        # Each (size, kind) case is a fresh subprocess; 2048^3 (32 GB dense) only with
+        # SPARSECAST_BENCH_SCALE_MAX=2048.
+        Suite("scale", "volumes larger than memory: a generated n-body float32 field at 256^3/512^3/1024^3 as "
+              "Zarr (lazy), .npy and raw, each in a fresh process: open, statistics, first build, rebuild, "
+              "1024^2 frame per exact index, time to first image, peak RSS (bench.scale)",
+              short="larger-than-memory section", duration=None, datasets=(), irt=False,
+              sizes=((1024, 1024),), sections=("scale",)),
     )
 }
 

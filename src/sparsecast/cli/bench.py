@@ -53,7 +53,7 @@ def bench(
     from ..bench.config import BenchConfig
     from ..bench.harness import finished_records
     from ..bench.progress import Progress, ResultStore
-    from ..bench.report import format_features, format_summary
+    from ..bench.report import format_features, format_scale, format_summary
     from ..bench.suites import get_suite, orbit_views
 
     plan = get_suite(suite or "quick")
@@ -100,9 +100,9 @@ def bench(
     wide = out if out.is_terminal else plain_console(200)
     # A suite run has hundreds of records: its console shows the headline, the report the rest.
     wide.print(format_summary(records) if suite else format_table(records))
-    features = format_features(records)
-    if features is not None:
-        wide.print(features)
+    for section_table in (format_features(records), format_scale(records)):
+        if section_table is not None:
+            wide.print(section_table)
     write_json(records, json_path)
     out.print(f"wrote {len(records)} records to {json_path}")
     figures = []

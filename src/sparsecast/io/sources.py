@@ -173,7 +173,9 @@ def _scalar(value):
 def _native(arr) -> np.ndarray:
     arr = np.asarray(arr)
     if arr.dtype.byteorder not in ("=", "|"):
-        arr = arr.astype(arr.dtype.newbyteorder("="))
+        native = arr.dtype.newbyteorder("=")
+        # "<i2" on a little-endian machine is native: a view, not a copy of the region
+        arr = arr.view(native) if arr.dtype == native else arr.astype(native)
     return arr
 
 

@@ -158,7 +158,11 @@ def load_volume(
     -------
     Volume
         Array of shape ``(nz, ny, nx)``; ``name`` is the file stem (``brain`` for
-        ``brain.nii.gz``); ``orientation`` the axis codes or None.
+        ``brain.nii.gz``); ``orientation`` the axis codes or None. A dense volume of a
+        ``.npy`` or raw file in native byte order and a supported dtype is the file
+        memory-mapped read-only (no copy); replace such a file (write a new one and
+        rename it, as :func:`save_volume` does) rather than rewrite it in place while
+        the volume is in use.
 
     Raises
     ------
@@ -203,6 +207,13 @@ def load_volume(
                                      background=background, memory_limit=budget, nonfinite=nonfinite,
                                      orientation=orientation if orientation is not None else source.orientation,
                                      progress=progress)
+            if source.kind in _MAPPED:
+                # The dense volume's voxels are the read-only memory map itself: no copy
+                # (np.load / np.fromfile copied 1 GiB from the page cache in 0.15-0.3 s),
+                # the pages arrive as the brick statistics read them, on every core.
+                return _make_volume(source.array[...], spacing if spacing is not None else 1.0,
+                                    origin if origin is not None else 0.0, source.path, source.name,
+                                    nonfinite, orientation)
             if _store_only(path):  # Zarr / HDF5 that fits: read it into a dense volume
                 sp = spacing if spacing is not None else source.spacing
                 org = origin if origin is not None else source.origin
@@ -249,6 +260,11 @@ def load_volume(
     org = origin if origin is not None else (read.origin if read.origin is not None else 0.0)
     return _make_volume(read.data, sp, org, p, name, nonfinite,
                         orientation if orientation is not None else read.orientation)
+
+
+#: sources whose dense volume maps the file instead of reading it (headerless voxels
+#: and .npy: no spacing, origin or orientation in the file)
+_MAPPED = ("npy", "raw")
 
 
 def _store_only(path) -> bool:

@@ -43,6 +43,7 @@ import numpy as np
 from .._util.checks import as_int, one_of
 from .._util.progress import ProgressArg, chunk_progress
 from ..errors import VolumeDataError
+from ..kernels.bricks import brick_windows
 from ..kernels.windows import count_values_nogil, window_minmax
 from ..volume import BrickStats
 
@@ -159,14 +160,6 @@ def scan_blocks(shape, itemsize: int, chunks: tuple[int, ...] | None,
     return tuple(base)  # type: ignore[return-value]
 
 
-def _windows(n: int, brick_size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Inclusive voxel windows ``[bB - 1, (b+1)B + 1]`` of the bricks along one axis, clipped
-    (the windows of :func:`sparsecast.kernels.bricks.brick_minmax`)."""
-    nb = max(1, -(-(n - 1) // brick_size))
-    b = np.arange(nb, dtype=np.int64)
-    return np.maximum(b * brick_size - 1, 0), np.minimum((b + 1) * brick_size + 1, n - 1)
-
-
 def _block_windows(lo: np.ndarray, hi: np.ndarray, c0: int, c1: int):
     """The bricks whose windows meet voxels ``[c0, c1)``: ``(slice of bricks, local lo, local hi)``."""
     first = int(np.searchsorted(hi, c0, side="left"))       # first window reaching c0
@@ -278,7 +271,7 @@ def scan(
         # serialises itself); asarray=False keeps the source's own reads lazy.
         darr = da.from_array(array, chunks=block, lock=False, asarray=False, fancy=False,
                              name=f"scan-source-{id(array):x}-{time.monotonic_ns()}")
-    wins = [_windows(n, brick_size) for n in shape]
+    wins = [brick_windows(n, brick_size) for n in shape]
     nb = tuple(len(w[0]) for w in wins)
     offsets = [np.concatenate(([0], np.cumsum(c))) for c in darr.chunks]
     acc = _Accumulator(nb, dtype, bins)
