@@ -14,8 +14,8 @@ from typing import NamedTuple
 from numba import njit
 
 from .ray import lattice_range
-from .sampler import sample, sample_gradient
-from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
+from .sampler import sample_alpha, sample_color, sample_normal
+from .shade import SHADING_ENABLED, blinn_phong
 
 
 class Dvr(NamedTuple):
@@ -25,13 +25,15 @@ class Dvr(NamedTuple):
 
 
 @njit(cache=True)
-def _shade_sample(flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading):
-    """Blinn-Phong colour of one sample from its central-difference gradient.
+def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing,
+                  shading):
+    """Blinn-Phong colour of one sample from its central-difference normal
+    (:func:`.sampler.sample_normal`: the field's gradient, or a smooth label's).
 
     Deliberately not inlined: keeping the six extra trilinear fetches out of the
     marching loop keeps that loop small (unshaded marching is the common case).
     """
-    gx, gy, gz = sample_gradient(flat, nx, ny, nz, x, y, z)
+    gx, gy, gz = sample_normal(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z)
     return blinn_phong(
         r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
         wdx, wdy, wdz, shading,
@@ -51,8 +53,9 @@ def march_segment(
 
     Parameters
     ----------
-    sampler : Trilinear or Nearest
-        How a sample reads the voxels (:mod:`.sampler`; chosen at compile time).
+    sampler : Trilinear, Nearest or SmoothLabels
+        How a sample reads and classifies the voxels (:mod:`.sampler`; chosen at
+        compile time).
     flat, nx, ny, nz
         Voxels as a 1-D view of the C-ordered ``(nz, ny, nx)`` array, and its dims
         (see :func:`.sample.trilinear`; make the view once per tile, not per ray).
@@ -95,15 +98,15 @@ def march_segment(
         x = ox + t * dx
         y = oy + t * dy
         z = oz + t * dz
-        v = sample(sampler, flat, nx, ny, nz, x, y, z)
-        i, f, a = tf_alpha(table, v, v_lo, scale)
+        a, look = sample_alpha(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z)
         n_samples += 1
         if a > 0.0:
             n_nonempty += 1
-            r, g, b = tf_color(table, i, f)
+            r, g, b = sample_color(sampler, table, look)
             if shade:
                 r, g, b = _shade_sample(
-                    flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading
+                    sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz,
+                    inv_spacing, shading,
                 )
             w = (1.0 - acc_a) * a
             acc_r += w * r
