@@ -147,3 +147,40 @@ def march_interval(
         sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
         inv_spacing, dt, k0, k1, acc_r, acc_g, acc_b, acc_a, ert, shading,
     )
+
+
+@njit(cache=True)
+def cap_sample(
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, k, gx, gy, gz,
+    acc_r, acc_g, acc_b, acc_a,
+    cap,
+):
+    """Composite lattice sample ``k``, shaded with the clip face's normal: a clip cap.
+
+    The driver calls this for the first sample ``k_lo`` of a ray that enters the clip
+    region through a cut face (:func:`.ray.entry_face`), before any index traversal,
+    and then marches from ``k + 1``: every index takes this one sample the same way,
+    at its lattice point, so capping keeps the oracle. Arguments are those of
+    :func:`march_segment`, with ``(gx, gy, gz)`` the face's index-space normal and
+    ``cap`` the (5,) shading parameters of the cap (see :mod:`.shade`; lit even
+    when the volume itself is unshaded).
+
+    Returns
+    -------
+    acc_r, acc_g, acc_b, acc_a : float
+        Updated accumulation.
+    n_nonempty : int
+        1 if the sample had non-zero opacity (it was capped), else 0.
+    """
+    t = k * dt
+    a, look = sample_alpha(sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz)
+    if not a > 0.0:
+        return acc_r, acc_g, acc_b, acc_a, 0
+    r, g, b = sample_color(sampler, table, look)
+    r, g, b = blinn_phong(r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
+                          wdx, wdy, wdz, cap)
+    w = (1.0 - acc_a) * a
+    return acc_r + w * r, acc_g + w * g, acc_b + w * b, acc_a + w, 1
