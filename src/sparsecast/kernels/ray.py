@@ -170,27 +170,32 @@ def clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi):
         Narrowed (``k_lo > k_hi``: no sample left). A lattice sample is kept iff its
         ``t`` passes every plane's bound, ``ceil`` / ``floor`` of ``t / dt`` as for
         a closed box face.
+    entered : int
+        The plane the ray enters the region through (the one that set ``t_lo``),
+        or -1 when ``t_lo`` is the box's: what a clip cap is lit by (:func:`entry_face`).
     """
+    entered = -1
     for p in range(planes.shape[0]):
         nd = planes[p, 0] * dx + planes[p, 1] * dy + planes[p, 2] * dz
         f0 = planes[p, 0] * ox + planes[p, 1] * oy + planes[p, 2] * oz - planes[p, 3]
         if nd == 0.0:
             if f0 < 0.0:
-                return 1, 0, t_lo, t_hi  # parallel and outside
+                return 1, 0, t_lo, t_hi, entered  # parallel and outside
             continue
         t = -f0 / nd
         if nd > 0.0:  # entering the half-space at t
             if t > t_lo:
                 t_lo = t
+                entered = p
                 if t_lo > t_hi:
-                    return 1, 0, t_lo, t_hi
+                    return 1, 0, t_lo, t_hi, entered
                 k_lo = max(k_lo, int(math.ceil(t / dt)))
         elif t < t_hi:  # leaving it at t
             t_hi = t
             if t_lo > t_hi:
-                return 1, 0, t_lo, t_hi
+                return 1, 0, t_lo, t_hi, entered
             k_hi = min(k_hi, int(math.floor(t / dt)))
-    return k_lo, k_hi, t_lo, t_hi
+    return k_lo, k_hi, t_lo, t_hi, entered
 
 
 @njit(cache=True, inline="always")
@@ -209,7 +214,7 @@ def _near_face(o, d, lo, hi, cut_lo, cut_hi, t_lo):
 
 
 @njit(cache=True)
-def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, planes, t_lo):
+def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, planes, entered, t_lo):
     """The cut face a ray enters its clipped interval through, for capping.
 
     Parameters
@@ -223,25 +228,30 @@ def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, p
         the volume's own faces, which are not capped.
     planes : (m, 4) float64
         Clip half-spaces (as given to :func:`clip_planes`).
+    entered : int
+        The plane :func:`clip_planes` reported (-1: none).
     t_lo : float
         The interval's start after the box and the planes.
 
     Returns
     -------
     found : bool
-        Whether ``t_lo`` is where the ray crosses a cut face or a clip plane (not the eye,
-        ``t_lo = 0`` inside the region, nor a face of the volume).
+        Whether ``t_lo`` is where the ray crosses a clip plane or a cut face of the
+        box (not the eye, ``t_lo = 0`` inside the region, nor a face of the volume).
     gx, gy, gz : float
         The face's index-space normal (unnormalised; a plane's row ``n``), which times
-        ``1 / spacing`` is its world normal, like a gradient. A ray through an edge
-        takes the last face that attains ``t_lo`` (planes after the box, as they clip).
+        ``1 / spacing`` is its world normal, like a gradient. A ray through an edge of
+        the box takes the last axis whose face attains ``t_lo``.
 
     Notes
     -----
-    Each candidate's ``t`` is recomputed with the arithmetic that clipped the ray, so
-    the test is an exact float comparison and every index (the face is chosen before
-    any traversal) caps the same rays.
+    A box face's ``t`` is recomputed as :func:`slab` computed it (one subtraction and
+    one product, which no contraction can change), so the test is an exact float
+    comparison; the plane comes from the clipping itself. The face is chosen before
+    any traversal, so every index caps the same rays.
     """
+    if entered >= 0:
+        return True, planes[entered, 0], planes[entered, 1], planes[entered, 2]
     found = False
     gx = 0.0
     gy = 0.0
@@ -255,13 +265,6 @@ def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, p
     if _near_face(oz, dz, z0, z1, cut_lo[2], cut_hi[2], t_lo):
         found = True
         gx, gy, gz = 0.0, 0.0, 1.0
-    for p in range(planes.shape[0]):
-        nd = planes[p, 0] * dx + planes[p, 1] * dy + planes[p, 2] * dz
-        if nd > 0.0:
-            f0 = planes[p, 0] * ox + planes[p, 1] * oy + planes[p, 2] * oz - planes[p, 3]
-            if -f0 / nd == t_lo:
-                found = True
-                gx, gy, gz = planes[p, 0], planes[p, 1], planes[p, 2]
     return found, gx, gy, gz
 
 

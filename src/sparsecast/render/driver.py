@@ -134,12 +134,14 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                 ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
                 ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt,
             )
+            entered = -1
             if k_lo <= k_hi and planes.shape[0] > 0:
-                k_lo, k_hi, t_lo, t_hi = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi)
+                k_lo, k_hi, t_lo, t_hi, entered = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi,
+                                                              k_lo, k_hi)
             k_next = k_lo
             if capping and k_lo <= k_hi and a < ert:
                 face, gx, gy, gz = entry_face(ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
-                                              cut_lo, cut_hi, planes, t_lo)
+                                              cut_lo, cut_hi, planes, entered, t_lo)
                 if face:
                     r, g, b, a, nne = cap_sample(
                         sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
