@@ -17,7 +17,10 @@ Contract implemented (unshaded only; gradient shading is not modelled):
   ``t_near <= t_k <= t_far``.
 * Trilinear interpolation with coordinates clamped to the box; vertex-centred voxels,
   ``data[k, j, i]`` is the value at point ``(i, j, k)``. Label TFs
-  (``tf.sampling == "nearest"``) read the nearest voxel, ``floor(c + 0.5)`` per axis.
+  (``tf.sampling == "nearest"``) read the nearest voxel, ``floor(c + 0.5)`` per axis;
+  smooth label TFs (``"smooth-labels"``) classify each of the eight corners of the
+  cell and blend their table RGBA, premultiplied, with the trilinear weights
+  (:func:`smooth_labels`).
 * TF lookup ``x = clamp((v - lo) * scale, 0, n-1)``, ``i = min(floor(x), n-2)``, linear
   blend of rows ``i`` and ``i+1`` of ``tf.opacity_table(dt, unit)`` with
   ``unit = tf.unit_distance or min(spacing)``.
@@ -45,6 +48,7 @@ __all__ = [
     "lattice",
     "trilinear",
     "tf_lookup",
+    "smooth_labels",
     "BACKGROUNDS",
 ]
 
@@ -148,6 +152,32 @@ def nearest(data: np.ndarray, x, y, z) -> np.ndarray:
     return data[idx[2], idx[1], idx[0]].astype(np.float64)
 
 
+def smooth_labels(data: np.ndarray, table: np.ndarray, v_lo: float, scale: float, x, y, z) -> np.ndarray:
+    """Straight RGBA of smooth label boundaries at index points ``(x, y, z)``: each label's
+    weight is the sum of the trilinear weights of the cell corners holding it; opacity
+    is ``sum_l w_l a_l`` and colour ``sum_l w_l a_l rgb_l / opacity`` (0 where empty)."""
+    nz, ny, nx = data.shape
+    x, y, z = (np.asarray(c, np.float64) for c in (x, y, z))
+    cells = [_axis(c, n) for c, n in ((x, nx), (y, ny), (z, nz))]
+    (i0, i1, fx), (j0, j1, fy), (k0, k1, fz) = cells
+    ids = data.astype(np.float64)
+    corner = [(ids[kk, jj, ii], wx * wy * wz)
+              for kk, wz in ((k0, 1.0 - fz), (k1, fz))
+              for jj, wy in ((j0, 1.0 - fy), (j1, fy))
+              for ii, wx in ((i0, 1.0 - fx), (i1, fx))]
+    labels = np.unique(np.concatenate([v.ravel() for v, _ in corner]))
+    weight = {label: sum(np.where(v == label, w, 0.0) for v, w in corner) for label in labels}
+    premult = np.zeros(x.shape + (4,))
+    for label, w in weight.items():
+        rgba = tf_lookup(table, np.array([label]), v_lo, scale)[0]
+        premult[..., :3] += (w * rgba[3])[..., None] * rgba[:3]
+        premult[..., 3] += w * rgba[3]
+    out = premult.copy()
+    on = premult[..., 3] > 0
+    out[on, :3] = premult[on, :3] / premult[on, 3:4]
+    return out
+
+
 def tf_lookup(table: np.ndarray, v: np.ndarray, v_lo: float, scale: float) -> np.ndarray:
     """RGBA (straight colour, table opacity) at values ``v``; shape ``v.shape + (4,)``."""
     n = table.shape[0]
@@ -201,7 +231,15 @@ def reference_render(
     v_lo = float(tf.value_range[0])
     scale = float(tf.scale)
     bg = _background(background)
-    sample = {"trilinear": trilinear, "nearest": nearest}[getattr(tf, "sampling", "trilinear")]
+    sampling = getattr(tf, "sampling", "trilinear")
+    if sampling == "smooth-labels":
+        def classify(p):
+            return smooth_labels(data, table, v_lo, scale, p[:, 0], p[:, 1], p[:, 2])
+    else:
+        sample = {"trilinear": trilinear, "nearest": nearest}[sampling]
+
+        def classify(p):
+            return tf_lookup(table, sample(data, p[:, 0], p[:, 1], p[:, 2]), v_lo, scale)
 
     wo, wd = camera.rays(width, height)
     wo = wo.reshape(-1, 3).astype(np.float64)
@@ -231,8 +269,7 @@ def reference_render(
                 continue
             t = k * dt
             p = o[sel] + t * d[sel]
-            v = sample(data, p[:, 0], p[:, 1], p[:, 2])
-            rgba = tf_lookup(table, v, v_lo, scale)
+            rgba = classify(p)
             samples[sel] += 1
             a = rgba[:, 3]
             on = a > 0.0

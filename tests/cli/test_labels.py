@@ -22,11 +22,32 @@ def seg_file(tmp_path):
     return path
 
 
-def _render(monkeypatch, capsys, tmp_path, seg_file, tf):
+def _render(monkeypatch, capsys, tmp_path, seg_file, tf, *extra):
     arr = tmp_path / "img.npy"
     code, out, err = run_cli(monkeypatch, capsys, "render", str(seg_file), "--tf", tf, "--size", "32x32",
-                             "--background", "transparent", "-o", str(tmp_path / "img.png"), "--array", str(arr))
+                             "--background", "transparent", "-o", str(tmp_path / "img.png"), "--array", str(arr),
+                             *extra)
     return code, out, err, (np.load(arr) if code == 0 else None)
+
+
+def test_smooth_labels_and_clip_cap_like_the_api(monkeypatch, capsys, tmp_path, seg_file):
+    plane = ((12.0, 11.0, 10.0), (-1.0, 0.0, 0.3))
+    code, _, err, rgba = _render(monkeypatch, capsys, tmp_path, seg_file, "labels:1,4", "--smooth-labels",
+                                 "--clip-cap", "--clip-plane", ",".join(map(str, (*plane[0], *plane[1]))))
+    assert code == 0, err
+    vol = sc.load_volume(seg_file)
+    tf = sc.TransferFunction.labels([1, 4], name="labels:1,4", smooth=True)
+    cam = sc.Camera.orbit(vol, 30, 20)
+    ref = sc.render(vol, tf, cam, 32, 32, background="transparent", clip_planes=[plane], clip_cap=True)
+    np.testing.assert_allclose(rgba, ref.rgba, atol=1e-6)
+    sharp = sc.render(vol, tf.smoothed(False), cam, 32, 32, background="transparent", clip_planes=[plane])
+    assert np.abs(ref.rgba - sharp.rgba).max() > 0.05
+
+
+def test_smooth_labels_need_a_label_tf(monkeypatch, capsys, tmp_path, seg_file):
+    code, _, err, _ = _render(monkeypatch, capsys, tmp_path, seg_file, "viridis", "--smooth-labels")
+    assert code == 2 and err.count("error:") == 1
+    assert "--smooth-labels: applies to label TFs" in err and "--tf viridis" in err
 
 
 def test_tf_labels_colours_every_id_but_background_like_the_api(monkeypatch, capsys, tmp_path, seg_file):

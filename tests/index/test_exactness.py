@@ -256,18 +256,18 @@ def label_scenes(draw):
                        brick_aligned=draw(st.booleans()), spacing=(1.0, 0.8, 1.25))
     shown = draw(st.lists(st.integers(1, n), min_size=1, max_size=n, unique=True))
     tf = sc.TransferFunction.labels({i: (0.2 + 0.1 * i % 0.8, 0.5, 1.0 - 0.1 * i, draw(st.sampled_from([0.3, 1.0])))
-                                     for i in shown})
+                                     for i in shown}, smooth=draw(st.booleans()))  # nearest or smooth boundaries
     cams = _cameras(vol)
     cam = cams[draw(st.sampled_from(sorted(cams)))]
-    return vol, tf, cam
+    return vol, tf, cam, draw(st.booleans())
 
 
 @pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
 @settings(max_examples=12, deadline=None)
 @given(data=label_scenes())
 def test_property_labels_equal_naive(name, opts, data):
-    vol, tf, cam = data
-    assert_same_as_naive(vol, tf, cam, 12, 10, name, opts, dt=0.5, ert=1.0)
+    vol, tf, cam, shade = data
+    assert_same_as_naive(vol, tf, cam, 12, 10, name, opts, dt=0.5, ert=1.0, shading=shade)
 
 
 #: indices that classify by value range during traversal (min-max) or not at all:
@@ -276,7 +276,8 @@ RANGE_ONLY = {"grid-mm", "hybrid-mm", "test-bbox"}
 
 
 @pytest.mark.parametrize("name, opts", CASES, ids=CASE_IDS)
-def test_hidden_labels_skip(name, opts):
+@pytest.mark.parametrize("smooth", [False, True])
+def test_hidden_labels_skip(name, opts, smooth):
     """Hiding the label that fills most bricks skips its bricks (and stays exact): the
     per-brick label sets see that a brick of {0, 5} has nothing visible once 5 is hidden,
     although its range [0, 5] spans the visible id 2."""
@@ -285,7 +286,7 @@ def test_hidden_labels_skip(name, opts):
     data[50:54, 50:54, 50:54] = 2  # a small visible box
     vol = sc.Volume(data)
     cam = sc.Camera.orbit(vol, 30, 20)
-    shown = sc.TransferFunction.labels({2: (1, 0, 0, 1), 5: (0, 0, 1, 0.4)})
+    shown = sc.TransferFunction.labels({2: (1, 0, 0, 1), 5: (0, 0, 1, 0.4)}, smooth=smooth)
     img_all, _ = assert_same_as_naive(vol, shown, cam, 24, 24, name, opts, ert=1.0)
     img_hidden, _ = assert_same_as_naive(vol, shown.hidden([5]), cam, 24, 24, name, opts, ert=1.0)
     if name in RANGE_ONLY:

@@ -1,4 +1,4 @@
-"""The driver's clip box (half-open faces), initial RGBA and screen rectangle.
+"""The driver's clip box (half-open faces), clip caps, initial RGBA and screen rectangle.
 
 Each is exact: every index equals naive under the same clip; pieces that share a
 face, rendered one after the other with ``initial``, equal the whole volume with
@@ -13,7 +13,7 @@ import pytest
 
 import sparsecast as sc
 from sparsecast import ParameterError
-from synthetic import sparse_volume
+from synthetic import label_volume, sparse_volume
 
 from sparsecast.index.registry import _INDICES
 
@@ -125,7 +125,91 @@ def test_clip_plane_is_a_half_box(scene):
     assert plane.stats["samples"] < whole.stats["samples"]
 
 
+# -- clip caps: the first sample behind a cut face lit with the face's normal ------------
+CLIPS = {
+    "box": dict(clip_box=((4.0, 3.5, 2.0), (27.25, 20.0, 25.0))),
+    "planes": dict(clip_planes=PLANES),
+    "box+plane": dict(clip_box=((0.0, 6.0, 0.0), (40.0, 40.0, 17.5)), clip_planes=PLANES[:1]),
+}
+
+
+@pytest.mark.parametrize("name", EXACT)
+@pytest.mark.parametrize("clip", sorted(CLIPS))
+@pytest.mark.parametrize("shade", [False, True])
+def test_clip_caps_equal_naive(scene, name, clip, shade):
+    vol, tf = scene
+    cam = sc.Camera.orbit(vol, 120, 20)  # from the side the planes remove: their cut faces are in view
+    kw = dict(dt=0.5, ert=1.0, shading=shade, clip_cap=True, **CLIPS[clip])
+    ref = sc.render(vol, tf, cam, 26, 22, index="naive", **kw)
+    img = sc.render(vol, tf, cam, 26, 22, index=name, **kw)
+    assert np.abs(img.rgba - ref.rgba).max() <= ATOL
+    assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
+    assert img.stats["samples"] <= ref.stats["samples"]
+    uncapped = sc.render(vol, tf, cam, 26, 22, index=name, **{**kw, "clip_cap": False})
+    assert np.abs(img.rgba - uncapped.rgba).max() > 0.01  # the caps show
+
+
+@pytest.mark.parametrize("name", ["kdtree-deep", "grid-pc", "lbvh"])
+@pytest.mark.parametrize("smooth", [False, True])
+def test_clip_caps_on_labels_equal_naive(name, smooth):
+    vol = label_volume(np.random.default_rng(8), (26, 30, 22), 5, brick_aligned=True)
+    tf = sc.TransferFunction.labels({1: (1, 0, 0, 1), 3: (0, 1, 0, 0.5), 5: (0, 0, 1, 0.8)}, smooth=smooth)
+    cam = sc.Camera.orbit(vol, 50, -20)
+    kw = dict(dt=0.5, ert=1.0, clip_cap=True, clip_planes=[((11.0, 13.0, 12.0), (-1.0, 0.2, 0.5))])
+    ref = sc.render(vol, tf, cam, 24, 24, index="naive", **kw)
+    img = sc.render(vol, tf, cam, 24, 24, index=name, **kw)
+    assert np.abs(img.rgba - ref.rgba).max() <= ATOL
+    assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
+
+
+def _solid():
+    """A uniform opaque block (TF colour (0.5, 0.2, 0.1) at opacity 1) seen along -z."""
+    vol = sc.Volume(np.ones((20, 20, 20), np.float32))
+    tf = sc.TransferFunction([(0.0, 0.5, 0.2, 0.1, 0.0), (1.0, 0.5, 0.2, 0.1, 1.0)])
+    c = vol.center
+    cam = sc.Camera.look_at(c + [0, 0, 50], c, up=(0, 1, 0), projection="orthographic", ortho_height=16)
+    return vol, tf, cam
+
+
+def _lit(colour, ndl):
+    """Blinn-Phong with DEFAULT_SHADING at |n . l| = ndl (headlight)."""
+    ka, kd, ks, shininess = 0.3, 0.7, 0.25, 24.0
+    return np.minimum(np.asarray(colour) * (ka + kd * ndl) + ks * ndl ** shininess, 1.0)
+
+
+@pytest.mark.parametrize("shade", [False, True])
+def test_cap_lights_a_clip_plane_with_its_normal(shade):
+    """A plane through the block, tilted 53 degrees from the view: where rays enter through
+    it, the pixel is the cap (|n . l| = 0.6); where they enter through the volume's top
+    face (y > 12.5), the block's own colour (uniform: zero gradient, ka + kd = 1 if shaded)."""
+    vol, tf, cam = _solid()
+    plane = [((9.5, 9.5, 15.0), (0.0, 0.8, -0.6))]
+    img = sc.render(vol, tf, cam, 32, 32, index="naive", shading=shade, clip_planes=plane, clip_cap=True).rgba
+    rgb = img[..., :3].reshape(-1, 3)
+    cap = np.all(np.abs(rgb - _lit((0.5, 0.2, 0.1), 0.6)) < 1e-5, axis=1)
+    own = np.all(np.abs(rgb - (0.5, 0.2, 0.1)) < 1e-5, axis=1)
+    assert cap.sum() > 200 and own.sum() > 200 and (cap | own).all()
+    plain = sc.render(vol, tf, cam, 32, 32, index="naive", shading=shade, clip_planes=plane).rgba
+    assert np.all(np.abs(plain[..., :3].reshape(-1, 3) - (0.5, 0.2, 0.1)) < 1e-5)
+
+
+def test_cap_lights_clip_box_faces_inside_the_volume_only():
+    """The box's top face cuts the block (a cap, |n . l| = 1); a box face on the volume's
+    own face is no cut (no cap there)."""
+    vol, tf, cam = _solid()
+    lo, hi = vol.bounds
+    cut = sc.render(vol, tf, cam, 24, 24, index="naive", clip_cap=True,
+                    clip_box=(tuple(lo), (hi[0], hi[1], 12.3))).rgba
+    np.testing.assert_allclose(cut[..., :3], np.broadcast_to(_lit((0.5, 0.2, 0.1), 1.0), cut[..., :3].shape),
+                               atol=1e-5)
+    same = sc.render(vol, tf, cam, 24, 24, index="naive", clip_cap=True, clip_box=(tuple(lo), tuple(hi))).rgba
+    np.testing.assert_allclose(same[..., :3], np.broadcast_to((0.5, 0.2, 0.1), same[..., :3].shape), atol=1e-5)
+
+
 @pytest.mark.parametrize("kw, match", [
+    (dict(clip_cap="yes"), "clip_cap: expected True or False"),
+    (dict(clip_cap=True, mode="iso", iso=0.5), "clip_cap: .*expected mode='dvr'"),
+
     (dict(clip_planes=[((0, 0, 0), (0, 0, 0))]), "normal"),
     (dict(clip_planes=[((0, 0, 0), (1, 0, 0))] * 7), "clip_planes"),
     (dict(clip_planes=[((0, 0, float("nan")), (1, 0, 0))]), "clip_planes"),

@@ -125,13 +125,18 @@ def test_background_bricks_at_faces_and_corners():
                 _same(dense, bricked, tf, cam, index=index, ert=1.0)
 
 
-def test_labels_sample_nearest_on_bricks(rng):
+@pytest.mark.parametrize("smooth", [False, True])
+def test_labels_sample_nearest_on_bricks(rng, smooth):
+    """Nearest and smooth label sampling (the eight corners from one slot, a normal's
+    neighbours from their own bricks) read bricks as they read the dense array."""
     vol = label_volume(rng, (30, 34, 27), 5, brick_aligned=True)
     bricked = sc.BrickedVolume(vol.data)
-    tf = sc.TransferFunction.labels({1: (1, 0, 0, 1), 3: (0, 1, 0, 0.5), 5: (0, 0, 1, 0.7)})
+    tf = sc.TransferFunction.labels({1: (1, 0, 0, 1), 3: (0, 1, 0, 0.5), 5: (0, 0, 1, 0.7)}, smooth=smooth)
     for cam in _cameras(vol)[:3]:
         for index in ("naive", "grid-pc", "kdtree-deep", "bih"):
             _same(vol, bricked, tf, cam, index=index)
+        _same(vol, bricked, tf, cam, index="kdtree-deep", shading=True, clip_cap=True,
+              clip_planes=[((13.0, 16.0, 14.0), (0.4, -1.0, 0.2))])
     assert bricked.label_counts()[0].tolist() == vol.label_counts()[0].tolist()
 
 

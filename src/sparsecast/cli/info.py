@@ -85,7 +85,7 @@ def info(
         f"for TF {tfn.name!r} over [{tfn.value_range[0]:g}, {tfn.value_range[1]:g}] "
         f"(brick stats {bricks.build_ms:.1f} ms, classify {classify_ms:.3f} ms" + (f"; {note})" if note else ")")
     )
-    if tfn.sampling == "nearest" or (file is not None and vol.dtype.kind in "ui" and vol.value_range[1] < 256
+    if tfn.sampling != "trilinear" or (file is not None and vol.dtype.kind in "ui" and vol.value_range[1] < 256
                                      and _few_ids(vol)):
         out.print("  labels    " + label_summary(vol, tfn))
 

@@ -107,6 +107,16 @@ def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float, default_r
     return TransferFunction.preset(spec, value_range, threshold=threshold)
 
 
+def smoothed_labels(tfn, spec: str, smooth: bool):
+    """``--smooth-labels``: the label TF ``tfn`` (from ``--tf spec``) with smooth boundaries."""
+    if not smooth:
+        return tfn
+    if tfn.sampling == "trilinear":
+        raise ParameterError(f"--smooth-labels: applies to label TFs (--tf labels, labels:ID,... or a "
+                             f"sparsecast-labels .json); got --tf {spec}, a {tfn.name!r} TF of a scalar field")
+    return tfn.smoothed()
+
+
 def label_tf(spec: str, vol):
     """``--tf labels[:ID,ID,...]``: distinct colours for the ids of a label volume."""
     from ..transfer import TransferFunction

@@ -17,7 +17,7 @@ from .app import (
     ProjectionOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
-from .inputs import load_input, make_tf, orbit_angles, orbit_frame
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame, smoothed_labels
 from .parse import parse_background, parse_clip_box, parse_clip_plane, parse_index_spec, parse_size
 
 __all__ = ["render"]
@@ -59,6 +59,12 @@ def render(
     clip_plane: Annotated[Optional[list[str]], typer.Option(
         help="Keep the side of the plane px,py,pz,nx,ny,nz that the normal points to (world units; "
              "repeat for up to 6 planes).")] = None,
+    clip_cap: Annotated[bool, typer.Option(
+        "--clip-cap", help="Shade the cut faces of --clip-box / --clip-plane with their normals (capping; "
+                           "--mode dvr).")] = False,
+    smooth_labels: Annotated[bool, typer.Option(
+        "--smooth-labels", help="With a label TF (--tf labels[:IDS] or a labels .json): smooth boundaries "
+                                "from interpolated per-label masks instead of nearest voxels.")] = False,
     time_step: Annotated[Optional[int], typer.Option("--time", help=(
         "Render this step of a time series: FILE is then a folder of volume files (natural order), a quoted "
         "glob pattern or a 4-D .npy."))] = None,
@@ -113,21 +119,22 @@ def render(
                       size=(width, height), orbit=(azimuth, elevation, up, view, projection, zoom),
                       render_kw=dict(dt=dt, index=index_name, ert=ert, shading=shade,
                                      background=parse_background(background), clip_box=box, clip_planes=planes,
-                                     mode=mode, iso=iso or None, **index_options),
+                                     clip_cap=clip_cap, mode=mode, iso=iso or None, **index_options),
+                      smooth_labels=smooth_labels,
                       load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
         return
     c0 = compile_seconds()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation, lazy=lazy,
                      memory_limit=memory_limit, level=level)
     frame = orbit_frame(vol, file, up, view)
-    tfn = make_tf(tf, vol, tf_range, threshold)
+    tfn = smoothed_labels(make_tf(tf, vol, tf_range, threshold), tf, smooth_labels)
     if tfn.is_transparent:
         warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
     az, el = orbit_angles(frame, azimuth, elevation)
     cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
-                    background=bg, clip_box=box, clip_planes=planes, mode=mode, iso=iso or None,
+                    background=bg, clip_box=box, clip_planes=planes, clip_cap=clip_cap, mode=mode, iso=iso or None,
                     **index_options)
     img.save(output)
     if array is not None:

@@ -15,7 +15,7 @@ from .._util.atomic import check_output
 from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from .app import err, out, warn
-from .inputs import make_tf, orbit_angles, orbit_frame
+from .inputs import make_tf, orbit_angles, orbit_frame, smoothed_labels
 from .parse import parse_dims, parse_spacing
 
 __all__ = ["render_series", "frame_paths", "open_series"]
@@ -53,7 +53,7 @@ def frame_paths(pattern: Path, n: int, option: str, suffixes) -> list[Path]:
 
 def render_series(file: Path, time_step: Optional[int], output: Path, array: Optional[Path], *, tf: str,
                   tf_range: Optional[str], threshold: float, size: tuple[int, int], orbit: tuple,
-                  render_kw: dict[str, Any], load_kw: dict[str, Any]) -> None:
+                  render_kw: dict[str, Any], load_kw: dict[str, Any], smooth_labels: bool = False) -> None:
     """Render one step (``time_step``) or all of them (``time_step`` None) of the series ``file``."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -72,7 +72,8 @@ def render_series(file: Path, time_step: Optional[int], output: Path, array: Opt
     azimuth, elevation, up, view, projection, zoom = orbit
     frame = orbit_frame(first, file, up, view)
     # One TF for every step: over the range of all of them unless --tf-range fixes it.
-    tfn = make_tf(tf, first, tf_range, threshold, default_range=None if tf_range else series.value_range)
+    tfn = smoothed_labels(make_tf(tf, first, tf_range, threshold,
+                                  default_range=None if tf_range else series.value_range), tf, smooth_labels)
     if tfn.is_transparent:
         warn(f"transfer function {tf!r} has zero opacity everywhere; the images are background only")
     az, el = orbit_angles(frame, azimuth, elevation)

@@ -45,6 +45,7 @@ __all__ = [
     "BrickedVoxels",
     "bricked_trilinear",
     "bricked_nearest",
+    "bricked_corners",
     "bricked_gradient",
     "bricked_offset",
     "gather_brick",
@@ -159,6 +160,38 @@ def bricked_nearest(vox, x, y, z):
         e = (1 << s) + 3
         v = float(vox.pool[(((slot * e + (k - (bz << s) + 1)) * e) + (j - (by << s) + 1)) * e + (i - (bx << s) + 1)])
     return v
+
+
+@njit(cache=True)
+def bricked_corners(vox, x, y, z):
+    """The eight corner values of the cell of ``(x, y, z)`` and its fractions, as the
+    dense :func:`..sample.corners` returns them (same cell, same order).
+
+    All eight lie in the slot of the cell's brick; a brick without a slot gives its
+    fill value at every corner.
+    """
+    i0, si, fx = _cell(x, vox.nx)
+    j0, sj, fy = _cell(y, vox.ny)
+    k0, sk, fz = _cell(z, vox.nz)
+    s = vox.shift
+    bx = i0 >> s
+    by = j0 >> s
+    bz = k0 >> s
+    b = (bz * vox.nby + by) * vox.nbx + bx
+    slot = np.int64(vox.pages[b])
+    if slot < 0:
+        v = vox.fill[b]
+        return v, v, v, v, v, v, v, v, fx, fy, fz
+    e = (1 << s) + 3
+    base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
+    pool = vox.pool
+    sj = sj * e
+    sk = sk * e * e
+    return (
+        float(pool[base]), float(pool[base + si]), float(pool[base + sj]), float(pool[base + sj + si]),
+        float(pool[base + sk]), float(pool[base + sk + si]), float(pool[base + sk + sj]),
+        float(pool[base + sk + sj + si]), fx, fy, fz,
+    )
 
 
 @njit(cache=True, inline="always")

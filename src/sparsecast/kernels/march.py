@@ -14,8 +14,8 @@ from typing import NamedTuple
 from numba import njit
 
 from .ray import lattice_range
-from .sampler import sample, sample_gradient
-from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
+from .sampler import sample_alpha, sample_color, sample_normal
+from .shade import SHADING_ENABLED, blinn_phong
 
 
 class Dvr(NamedTuple):
@@ -25,13 +25,15 @@ class Dvr(NamedTuple):
 
 
 @njit(cache=True)
-def _shade_sample(flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading):
-    """Blinn-Phong colour of one sample from its central-difference gradient.
+def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing,
+                  shading):
+    """Blinn-Phong colour of one sample from its central-difference normal
+    (:func:`.sampler.sample_normal`: the field's gradient, or a smooth label's).
 
     Deliberately not inlined: keeping the six extra trilinear fetches out of the
     marching loop keeps that loop small (unshaded marching is the common case).
     """
-    gx, gy, gz = sample_gradient(flat, nx, ny, nz, x, y, z)
+    gx, gy, gz = sample_normal(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z)
     return blinn_phong(
         r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
         wdx, wdy, wdz, shading,
@@ -51,8 +53,9 @@ def march_segment(
 
     Parameters
     ----------
-    sampler : Trilinear or Nearest
-        How a sample reads the voxels (:mod:`.sampler`; chosen at compile time).
+    sampler : Trilinear, Nearest or SmoothLabels
+        How a sample reads and classifies the voxels (:mod:`.sampler`; chosen at
+        compile time).
     flat, nx, ny, nz
         Voxels as a 1-D view of the C-ordered ``(nz, ny, nx)`` array, and its dims
         (see :func:`.sample.trilinear`; make the view once per tile, not per ray).
@@ -95,15 +98,15 @@ def march_segment(
         x = ox + t * dx
         y = oy + t * dy
         z = oz + t * dz
-        v = sample(sampler, flat, nx, ny, nz, x, y, z)
-        i, f, a = tf_alpha(table, v, v_lo, scale)
+        a, look = sample_alpha(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z)
         n_samples += 1
         if a > 0.0:
             n_nonempty += 1
-            r, g, b = tf_color(table, i, f)
+            r, g, b = sample_color(sampler, table, look)
             if shade:
                 r, g, b = _shade_sample(
-                    flat, nx, ny, nz, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing, shading
+                    sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz,
+                    inv_spacing, shading,
                 )
             w = (1.0 - acc_a) * a
             acc_r += w * r
@@ -144,3 +147,40 @@ def march_interval(
         sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
         inv_spacing, dt, k0, k1, acc_r, acc_g, acc_b, acc_a, ert, shading,
     )
+
+
+@njit(cache=True)
+def cap_sample(
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, k, gx, gy, gz,
+    acc_r, acc_g, acc_b, acc_a,
+    cap,
+):
+    """Composite lattice sample ``k``, shaded with the clip face's normal: a clip cap.
+
+    The driver calls this for the first sample ``k_lo`` of a ray that enters the clip
+    region through a cut face (:func:`.ray.entry_face`), before any index traversal,
+    and then marches from ``k + 1``: every index takes this one sample the same way,
+    at its lattice point, so capping keeps the oracle. Arguments are those of
+    :func:`march_segment`, with ``(gx, gy, gz)`` the face's index-space normal and
+    ``cap`` the (5,) shading parameters of the cap (see :mod:`.shade`; lit even
+    when the volume itself is unshaded).
+
+    Returns
+    -------
+    acc_r, acc_g, acc_b, acc_a : float
+        Updated accumulation.
+    n_nonempty : int
+        1 if the sample had non-zero opacity (it was capped), else 0.
+    """
+    t = k * dt
+    a, look = sample_alpha(sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz)
+    if not a > 0.0:
+        return acc_r, acc_g, acc_b, acc_a, 0
+    r, g, b = sample_color(sampler, table, look)
+    r, g, b = blinn_phong(r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
+                          wdx, wdy, wdz, cap)
+    w = (1.0 - acc_a) * a
+    return acc_r + w * r, acc_g + w * g, acc_b + w * b, acc_a + w, 1

@@ -170,27 +170,102 @@ def clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi):
         Narrowed (``k_lo > k_hi``: no sample left). A lattice sample is kept iff its
         ``t`` passes every plane's bound, ``ceil`` / ``floor`` of ``t / dt`` as for
         a closed box face.
+    entered : int
+        The plane the ray enters the region through (the one that set ``t_lo``),
+        or -1 when ``t_lo`` is the box's: what a clip cap is lit by (:func:`entry_face`).
     """
+    entered = -1
     for p in range(planes.shape[0]):
         nd = planes[p, 0] * dx + planes[p, 1] * dy + planes[p, 2] * dz
         f0 = planes[p, 0] * ox + planes[p, 1] * oy + planes[p, 2] * oz - planes[p, 3]
         if nd == 0.0:
             if f0 < 0.0:
-                return 1, 0, t_lo, t_hi  # parallel and outside
+                return 1, 0, t_lo, t_hi, entered  # parallel and outside
             continue
         t = -f0 / nd
         if nd > 0.0:  # entering the half-space at t
             if t > t_lo:
                 t_lo = t
+                entered = p
                 if t_lo > t_hi:
-                    return 1, 0, t_lo, t_hi
+                    return 1, 0, t_lo, t_hi, entered
                 k_lo = max(k_lo, int(math.ceil(t / dt)))
         elif t < t_hi:  # leaving it at t
             t_hi = t
             if t_lo > t_hi:
-                return 1, 0, t_lo, t_hi
+                return 1, 0, t_lo, t_hi, entered
             k_hi = min(k_hi, int(math.floor(t / dt)))
-    return k_lo, k_hi, t_lo, t_hi
+    return k_lo, k_hi, t_lo, t_hi, entered
+
+
+@njit(cache=True, inline="always")
+def _near_face(o, d, lo, hi, cut_lo, cut_hi, t_lo):
+    """Whether the near face of one slab is a cut face the ray enters through at ``t_lo``.
+
+    The near face's ``t`` is computed as :func:`slab` computes it (``(plane - o) * (1 / d)``),
+    so it equals ``t_lo`` bit for bit exactly when this face bounded the interval.
+    """
+    if d == 0.0:
+        return False
+    inv = 1.0 / d
+    if inv < 0.0:
+        return cut_hi and (hi - o) * inv == t_lo
+    return cut_lo and (lo - o) * inv == t_lo
+
+
+@njit(cache=True)
+def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, planes, entered, t_lo):
+    """The cut face a ray enters its clipped interval through, for capping.
+
+    Parameters
+    ----------
+    ox, oy, oz, dx, dy, dz : float
+        Index-space ray.
+    x0, y0, z0, x1, y1, z1 : float
+        The clip box (as given to :func:`clip_lattice`).
+    cut_lo, cut_hi : (3,) bool
+        Box faces that cut the volume (lie strictly inside its box); the others are
+        the volume's own faces, which are not capped.
+    planes : (m, 4) float64
+        Clip half-spaces (as given to :func:`clip_planes`).
+    entered : int
+        The plane :func:`clip_planes` reported (-1: none).
+    t_lo : float
+        The interval's start after the box and the planes.
+
+    Returns
+    -------
+    found : bool
+        Whether ``t_lo`` is where the ray crosses a clip plane or a cut face of the
+        box (not the eye, ``t_lo = 0`` inside the region, nor a face of the volume).
+    gx, gy, gz : float
+        The face's index-space normal (unnormalised; a plane's row ``n``), which times
+        ``1 / spacing`` is its world normal, like a gradient. A ray through an edge of
+        the box takes the last axis whose face attains ``t_lo``.
+
+    Notes
+    -----
+    A box face's ``t`` is recomputed as :func:`slab` computed it (one subtraction and
+    one product, which no contraction can change), so the test is an exact float
+    comparison; the plane comes from the clipping itself. The face is chosen before
+    any traversal, so every index caps the same rays.
+    """
+    if entered >= 0:
+        return True, planes[entered, 0], planes[entered, 1], planes[entered, 2]
+    found = False
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    if _near_face(ox, dx, x0, x1, cut_lo[0], cut_hi[0], t_lo):
+        found = True
+        gx, gy, gz = 1.0, 0.0, 0.0
+    if _near_face(oy, dy, y0, y1, cut_lo[1], cut_hi[1], t_lo):
+        found = True
+        gx, gy, gz = 0.0, 1.0, 0.0
+    if _near_face(oz, dz, z0, z1, cut_lo[2], cut_hi[2], t_lo):
+        found = True
+        gx, gy, gz = 0.0, 0.0, 1.0
+    return found, gx, gy, gz
 
 
 @njit(cache=True)

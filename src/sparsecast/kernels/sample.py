@@ -80,3 +80,27 @@ def gradient(flat, nx, ny, nz, x, y, z):
     gy = 0.5 * (trilinear(flat, nx, ny, nz, x, y1, z) - trilinear(flat, nx, ny, nz, x, y0, z))
     gz = 0.5 * (trilinear(flat, nx, ny, nz, x, y, z1) - trilinear(flat, nx, ny, nz, x, y, z0))
     return gx, gy, gz
+
+
+@njit(cache=True, inline="always")
+def corners(flat, nx, ny, nz, x, y, z):
+    """The eight voxel values of the trilinear cell of ``(x, y, z)`` and its fractions.
+
+    Returns ``(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)`` with
+    ``v_kji`` the corner ``k`` steps along z, ``j`` along y and ``i`` along x from the
+    cell's lower corner, picked exactly as :func:`trilinear` picks them (same cell, same
+    unclamped fractions). Label volumes interpolate per-label weights of these corners
+    instead of their values (:mod:`.sampler`, ``SmoothLabels``).
+    """
+    i0, i1, fx = _axis(x, nx)
+    j0, j1, fy = _axis(y, ny)
+    k0, k1, fz = _axis(z, nz)
+    a00 = (k0 * ny + j0) * nx
+    a01 = (k0 * ny + j1) * nx
+    a10 = (k1 * ny + j0) * nx
+    a11 = (k1 * ny + j1) * nx
+    return (
+        float(flat[a00 + i0]), float(flat[a00 + i1]), float(flat[a01 + i0]), float(flat[a01 + i1]),
+        float(flat[a10 + i0]), float(flat[a10 + i1]), float(flat[a11 + i0]), float(flat[a11 + i1]),
+        fx, fy, fz,
+    )

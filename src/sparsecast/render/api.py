@@ -16,6 +16,7 @@ from ..index import SpatialIndex, View, build_index
 from ..kernels.iso import MAX_ISOVALUES, Iso, IsoDvr
 from ..kernels.march import Dvr
 from ..kernels.sampler import sampler_for
+from ..kernels.shade import SHADING_SIZE
 from ..transfer import TransferFunction
 from ..volume import Volume
 from .driver import tiles_kernel
@@ -59,6 +60,7 @@ def render(
     clip_box: Sequence[Sequence[float]] | None = None,
     clip_open: Sequence[Sequence[bool]] | None = None,
     clip_planes: Sequence[tuple[Sequence[float], Sequence[float]]] | None = None,
+    clip_cap: bool = False,
     initial: np.ndarray | None = None,
     rect: Sequence[int] | None = None,
     max_samples: int = MAX_SAMPLES_PER_IMAGE,
@@ -107,6 +109,15 @@ def render(
     clip_planes : sequence of (point, normal), optional
         Up to :data:`MAX_CLIP_PLANES` world-space planes; each keeps the side its
         normal points to (``normal . (x - point) >= 0``). Combined with ``clip_box``.
+    clip_cap : bool
+        Shade the cut faces (what VTK and ParaView call capping): a ray that enters
+        the clip region through a clip-box face inside the volume, or through a clip
+        plane, lights its first sample there with the face's normal instead of the
+        gradient (Blinn-Phong with ``shading``'s coefficients, or the defaults when
+        the volume is unshaded). Rays entering through the volume's own faces, or
+        starting inside the region, are unchanged; so is every sample after the
+        first. Exact for every index (the cap sample is taken before traversal).
+        ``mode="dvr"`` only.
     initial : (h, w, 4) float32, optional
         Premultiplied RGBA already accumulated in front of the clip box, per
         pixel of the rendered rectangle: rays continue from it (and stop at once
@@ -193,6 +204,7 @@ def render(
         )
     ert = as_float(ert, "ert", 0.0, 1.0, lo_open=True, expected="an opacity threshold in (0, 1]")
     clip_lo, clip_hi, open_lo, open_hi = _clip(volume, clip_box, clip_open)
+    cap = _cap_shading(clip_cap, mode, shading)
     init = initial_rgba(initial, w, h)
 
     # The iso modes skip bricks by a TF that is non-empty around the isovalues.
@@ -246,6 +258,8 @@ def render(
         v_lo=float(tf.value_range[0]), scale=float(tf.scale),
         clip_lo=clip_lo, clip_hi=clip_hi, open_lo=open_lo, open_hi=open_hi,
         any_open=bool(open_lo.any() or open_hi.any()), planes=_planes(volume, clip_planes),
+        cap=cap, cut_lo=np.ascontiguousarray(clip_lo > 0.0),
+        cut_hi=np.ascontiguousarray(clip_hi < np.array(volume.shape[::-1], np.float64) - 1.0),
         sampler=sampler_for(tf.sampling), mode=mode_marker,
     )
     record = index.traversal_record(_view(cam, origin, inv_spacing))
@@ -385,6 +399,20 @@ def _clip(volume: Volume, clip_box, clip_open):
     open_hi = flags[1] & (c_hi <= hi)
     return (np.ascontiguousarray(np.maximum(lo, c_lo)), np.ascontiguousarray(np.minimum(hi, c_hi)),
             np.ascontiguousarray(open_lo), np.ascontiguousarray(open_hi))
+
+
+def _cap_shading(clip_cap, mode: str, shading) -> np.ndarray:
+    """``clip_cap=`` as the frame's cap shading: zeros for no caps, else the render's
+    shading parameters (the defaults where the volume is unshaded)."""
+    if not isinstance(clip_cap, (bool, np.bool_)):
+        raise ParameterError(f"clip_cap: expected True or False, got {clip_cap!r}")
+    if not clip_cap:
+        return np.zeros(SHADING_SIZE, np.float64)
+    if mode != "dvr":
+        raise ParameterError(f"clip_cap: caps shade the first DVR sample behind a cut face; got mode={mode!r}, "
+                             "expected mode='dvr'")
+    cap = shading_array(shading)
+    return cap if cap[0] != 0.0 else shading_array(True)
 
 
 def _planes(volume: Volume, clip_planes) -> np.ndarray:

@@ -18,6 +18,13 @@ intervals takes exactly the lattice indices that marching them one by one with
 ``k_next`` would, so it changes no float. ``[k_lo, k_hi]`` from
 :func:`~sparsecast.kernels.ray.clip_lattice` bounds every segment, so an index
 may yield intervals reaching past the clip box.
+
+Clip caps. With ``frame.cap`` on, a ray whose clipped interval starts on a cut
+face (a clip-box face inside the volume, or a clip plane) takes its first
+lattice sample ``k_lo`` here, shaded with the face's normal
+(:func:`~sparsecast.kernels.march.cap_sample`), and the index's intervals are
+marched from ``k_lo + 1``: a per-ray decision before any traversal, the same for
+every index, and no branch in the marching loop.
 """
 
 from __future__ import annotations
@@ -29,7 +36,8 @@ from numba import njit
 from ..index.interval import coalesces, integrate, make_scratch, next_interval, start_ray
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import index_space_ray
-from ..kernels.ray import clip_lattice, clip_planes
+from ..kernels.march import cap_sample
+from ..kernels.ray import clip_lattice, clip_planes, entry_face
 from ..kernels.layout import voxel_view
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
@@ -99,6 +107,10 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     ox0, oy0, oz0, ox1, oy1, oz1 = olo[0], olo[1], olo[2], ohi[0], ohi[1], ohi[2]
     any_open = frame.any_open
     planes = frame.planes
+    cap = frame.cap
+    capping = cap[0] != 0.0
+    cut_lo = frame.cut_lo
+    cut_hi = frame.cut_hi
     x0, x1, y0, y1 = tile_bounds(tile, w, h)
     for py in range(y0, y1):
         for px in range(x0, x1):
@@ -122,11 +134,24 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                 ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
                 ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt,
             )
+            entered = -1
             if k_lo <= k_hi and planes.shape[0] > 0:
-                k_lo, k_hi, t_lo, t_hi = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi)
-            if k_lo <= k_hi and a < ert:
+                k_lo, k_hi, t_lo, t_hi, entered = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi,
+                                                              k_lo, k_hi)
+            k_next = k_lo
+            if capping and k_lo <= k_hi and a < ert:
+                face, gx, gy, gz = entry_face(ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
+                                              cut_lo, cut_hi, planes, entered, t_lo)
+                if face:
+                    r, g, b, a, nne = cap_sample(
+                        sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+                        wdx, wdy, wdz, inv_spacing, dt, k_lo, gx, gy, gz, r, g, b, a, cap,
+                    )
+                    n_samples += 1
+                    n_nonempty += nne
+                    k_next = k_lo + 1
+            if k_next <= k_hi and a < ert:
                 state = start_ray(record, scratch, ray, t_lo, t_hi)
-                k_next = k_lo
                 seg_open = False
                 seg_t0 = 0.0
                 seg_t1 = -math.inf

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..kernels.iso import Iso, IsoDvr
 from ..kernels.march import Dvr
-from ..kernels.sampler import Nearest, Trilinear
+from ..kernels.sampler import Nearest, SmoothLabels, Trilinear
 
 __all__ = ["Frame"]
 
@@ -48,9 +48,15 @@ class Frame(NamedTuple):
         Whether any clip face is open.
     planes : (m, 4) float64
         Index-space clip half-spaces ``n . x >= c`` as rows ``(nx, ny, nz, c)``; m may be 0.
-    sampler : Trilinear or Nearest
-        How samples read the voxels (:mod:`sparsecast.kernels.sampler`); its type
-        selects the compiled marching loop.
+    cap : (5,) float64
+        Shading of clip caps (:mod:`sparsecast.kernels.shade` layout); ``cap[0] == 0``:
+        no caps. The first sample behind a cut face is lit with the face's normal.
+    cut_lo, cut_hi : (3,) bool
+        Clip-box faces that cut the volume (strictly inside its box): the faces that
+        get caps (clip planes always do).
+    sampler : Trilinear, Nearest or SmoothLabels
+        How samples read and classify the voxels (:mod:`sparsecast.kernels.sampler`);
+        its type selects the compiled marching loop.
     mode : Dvr, Iso or IsoDvr
         What a ray composites (:mod:`sparsecast.kernels.march`, :mod:`sparsecast.kernels.iso`):
         DVR samples, isosurfaces, or both in depth order; its type selects the loop too.
@@ -76,5 +82,8 @@ class Frame(NamedTuple):
     open_hi: np.ndarray
     any_open: bool
     planes: np.ndarray
-    sampler: Trilinear | Nearest
+    cap: np.ndarray
+    cut_lo: np.ndarray
+    cut_hi: np.ndarray
+    sampler: Trilinear | Nearest | SmoothLabels
     mode: Dvr | Iso | IsoDvr
