@@ -459,7 +459,12 @@ class BrickedVolume(Volume):
         B = self.brick_size
         if isinstance(src, np.ndarray) and src.dtype in SUPPORTED_DTYPES and not isinstance(src, np.memmap):
             return Volume(src, name=self.name, nonfinite=self._nonfinite).brick_stats(B)
-        found = scan(src, B, nonfinite=self._nonfinite, progress=self._progress)
+        try:
+            found = scan(src, B, nonfinite=self._nonfinite, progress=self._progress)
+        except (SparsecastError, MemoryError):
+            raise  # a source's own errors name its chunks
+        except Exception as exc:  # an array-like's reader failing: name the volume
+            raise VolumeDataError(f"{self.name}: reading the source failed: {type(exc).__name__}: {exc}") from exc
         self.loads["bytes_read"] += found.shape[0] * found.shape[1] * found.shape[2] * found.dtype.itemsize
         self._histogram = (found.counts, found.edges) if found.counts is not None else None
         self._range = found.value_range  # finite range: what "replace" substitutes
