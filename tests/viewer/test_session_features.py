@@ -170,3 +170,19 @@ def test_naive_probe_renders_the_same_scene(blobs):
     assert s.probe_naive(snap, 1.0)["naive_ms"] > 0
     assert not s.needs_probe(snap)
     assert s.needs_probe(s.update(RenderRequest(width=W, height=H, clip=ClipSpec())))  # another view
+
+
+def test_the_viewer_opens_a_lazy_volume(blobs, tmp_path):
+    """A volume read lazily from a Zarr store under a memory budget: the session's
+    histogram and frames come without a dense array, and equal the dense volume's."""
+    store = sc.io.convert_volume(blobs, tmp_path / "blobs.zarr", chunks=16).path
+    lazy = sc.load_volume(store, lazy=True, memory_limit="4MB")
+    assert isinstance(lazy, sc.BrickedVolume)
+    dense_s = Session(ViewerData.create(blobs, "viridis", index="kdtree-deep"))
+    lazy_s = Session(ViewerData.create(lazy, "viridis", index="kdtree-deep"))
+    assert lazy_s.data.histogram.sum() == blobs.data.size
+    for kw in ({}, {"clip": ClipSpec(((0.2, 0.0, 0.0), (0.7, 1.0, 1.0)), ())}):
+        _, want = frame(dense_s, **kw)
+        _, got = frame(lazy_s, **kw)
+        np.testing.assert_allclose(got, want, atol=ATOL)
+    assert 0 < lazy.resident_bricks <= lazy.stored_bricks  # the frames paged bricks in
