@@ -34,6 +34,8 @@ import numpy as np
 from numba import njit, prange
 from numba.core.errors import NumbaIRAssumptionWarning
 
+from .sample import lerp8
+
 # Inlining the bricked sampler into the iso modes' inlined sample-at-t helper trips a
 # pedantic scope check in Numba's IR inliner (the inlined result variable is reported
 # "not in scope"); the compiled code is right (tests/storage: iso modes equal dense), and
@@ -93,43 +95,57 @@ def _cell(x, n):
 
 
 @njit(cache=True, inline="always")
+def _brick(vox, i0, j0, k0):
+    """Brick ``(bx, by, bz)`` of cell ``(k0, j0, i0)`` and its flat number."""
+    s = vox.shift
+    bx = i0 >> s
+    by = j0 >> s
+    bz = k0 >> s
+    return bx, by, bz, (bz * vox.nby + by) * vox.nbx + bx
+
+
+@njit(cache=True, inline="always")
+def _slot_base(vox, slot, bx, by, bz, i, j, k):
+    """Pool offset of voxel ``(k, j, i)`` in the slot of brick ``(bz, by, bx)``."""
+    s = vox.shift
+    e = (1 << s) + 3
+    return (((slot * e + (k - (bz << s) + 1)) * e) + (j - (by << s) + 1)) * e + (i - (bx << s) + 1)
+
+
+@njit(cache=True, inline="always")
 def _lerp8(pool, base, si, sj, sk, fx, fy, fz):
-    """The interpolation of :func:`..sample.trilinear`, same order, from one slot."""
-    v000 = float(pool[base])
-    v001 = float(pool[base + si])
-    v010 = float(pool[base + sj])
-    v011 = float(pool[base + sj + si])
-    v100 = float(pool[base + sk])
-    v101 = float(pool[base + sk + si])
-    v110 = float(pool[base + sk + sj])
-    v111 = float(pool[base + sk + sj + si])
-    c00 = v000 + fx * (v001 - v000)
-    c10 = v010 + fx * (v011 - v010)
-    c01 = v100 + fx * (v101 - v100)
-    c11 = v110 + fx * (v111 - v110)
-    c0 = c00 + fy * (c10 - c00)
-    c1 = c01 + fy * (c11 - c01)
-    return c0 + fz * (c1 - c0)
+    """The dense interpolation (:func:`..sample.lerp8`) of the cell at ``pool[base]``."""
+    return lerp8(float(pool[base]), float(pool[base + si]), float(pool[base + sj]), float(pool[base + sj + si]),
+                 float(pool[base + sk]), float(pool[base + sk + si]), float(pool[base + sk + sj]),
+                 float(pool[base + sk + sj + si]), fx, fy, fz)
+
+
+@njit(cache=True, inline="always")
+def _slot_lerp(vox, slot, bx, by, bz, x, y, z):
+    """Trilinear value at ``(x, y, z)`` read from the slot of brick ``(bz, by, bx)``.
+
+    The point's cell must lie in the brick's stored window (``[b*B - 1, (b+1)*B + 1]``):
+    its own cells, and the gradient's neighbours of any point in them.
+    """
+    i0, si, fx = _cell(x, vox.nx)
+    j0, sj, fy = _cell(y, vox.ny)
+    k0, sk, fz = _cell(z, vox.nz)
+    e = (1 << vox.shift) + 3
+    return _lerp8(vox.pool, _slot_base(vox, slot, bx, by, bz, i0, j0, k0), si, sj * e, sk * e * e, fx, fy, fz)
 
 
 @njit(cache=True, inline="always")
 def bricked_trilinear(vox, x, y, z):
     """Trilinear value at index-space point ``(x, y, z)``; equal to the dense one."""
-    i0, si, fx = _cell(x, vox.nx)
-    j0, sj, fy = _cell(y, vox.ny)
-    k0, sk, fz = _cell(z, vox.nz)
-    s = vox.shift
-    bx = i0 >> s
-    by = j0 >> s
-    bz = k0 >> s
-    b = (bz * vox.nby + by) * vox.nbx + bx
+    i0, _, _ = _cell(x, vox.nx)
+    j0, _, _ = _cell(y, vox.ny)
+    k0, _, _ = _cell(z, vox.nz)
+    bx, by, bz, b = _brick(vox, i0, j0, k0)
     slot = np.int64(vox.pages[b])
     # Inlined (worth ~25 % against a call per sample), with one return.
     v = vox.fill[b]
     if slot >= 0:
-        e = (1 << s) + 3
-        base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
-        v = _lerp8(vox.pool, base, si, sj * e, sk * e * e, fx, fy, fz)
+        v = _slot_lerp(vox, slot, bx, by, bz, x, y, z)
     return v
 
 
@@ -143,22 +159,17 @@ def bricked_nearest(vox, x, y, z):
     nx = vox.nx
     ny = vox.ny
     nz = vox.nz
-    i0 = min(max(int(x), 0), max(nx - 2, 0))
-    j0 = min(max(int(y), 0), max(ny - 2, 0))
-    k0 = min(max(int(z), 0), max(nz - 2, 0))
-    s = vox.shift
-    bx = i0 >> s
-    by = j0 >> s
-    bz = k0 >> s
-    b = (bz * vox.nby + by) * vox.nbx + bx
+    i0, _, _ = _cell(x, nx)
+    j0, _, _ = _cell(y, ny)
+    k0, _, _ = _cell(z, nz)
+    bx, by, bz, b = _brick(vox, i0, j0, k0)
     slot = np.int64(vox.pages[b])
     v = vox.fill[b]
     if slot >= 0:  # one return (see bricked_trilinear)
         i = min(max(int(x + 0.5), 0), nx - 1)
         j = min(max(int(y + 0.5), 0), ny - 1)
         k = min(max(int(z + 0.5), 0), nz - 1)
-        e = (1 << s) + 3
-        v = float(vox.pool[(((slot * e + (k - (bz << s) + 1)) * e) + (j - (by << s) + 1)) * e + (i - (bx << s) + 1)])
+        v = float(vox.pool[_slot_base(vox, slot, bx, by, bz, i, j, k)])
     return v
 
 
@@ -173,17 +184,13 @@ def bricked_corners(vox, x, y, z):
     i0, si, fx = _cell(x, vox.nx)
     j0, sj, fy = _cell(y, vox.ny)
     k0, sk, fz = _cell(z, vox.nz)
-    s = vox.shift
-    bx = i0 >> s
-    by = j0 >> s
-    bz = k0 >> s
-    b = (bz * vox.nby + by) * vox.nbx + bx
+    bx, by, bz, b = _brick(vox, i0, j0, k0)
     slot = np.int64(vox.pages[b])
     if slot < 0:
         v = vox.fill[b]
         return v, v, v, v, v, v, v, v, fx, fy, fz
-    e = (1 << s) + 3
-    base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
+    e = (1 << vox.shift) + 3
+    base = _slot_base(vox, slot, bx, by, bz, i0, j0, k0)
     pool = vox.pool
     sj = sj * e
     sk = sk * e * e
@@ -192,22 +199,6 @@ def bricked_corners(vox, x, y, z):
         float(pool[base + sk]), float(pool[base + sk + si]), float(pool[base + sk + sj]),
         float(pool[base + sk + sj + si]), fx, fy, fz,
     )
-
-
-@njit(cache=True, inline="always")
-def _slot_trilinear(vox, slot, bx, by, bz, x, y, z):
-    """Trilinear value at ``(x, y, z)`` read from the slot of brick ``(bz, by, bx)``.
-
-    The point's cell must lie in the brick's stored window (``[b*B - 1, (b+1)*B + 1]``),
-    which holds for the gradient's neighbours of any point in the brick's cells.
-    """
-    i0, si, fx = _cell(x, vox.nx)
-    j0, sj, fy = _cell(y, vox.ny)
-    k0, sk, fz = _cell(z, vox.nz)
-    s = vox.shift
-    e = (1 << s) + 3
-    base = (((slot * e + (k0 - (bz << s) + 1)) * e) + (j0 - (by << s) + 1)) * e + (i0 - (bx << s) + 1)
-    return _lerp8(vox.pool, base, si, sj * e, sk * e * e, fx, fy, fz)
 
 
 @njit(cache=True, inline="always")
@@ -235,19 +226,16 @@ def bricked_gradient(vox, x, y, z):
     i0, _, _ = _cell(x, nx)
     j0, _, _ = _cell(y, ny)
     k0, _, _ = _cell(z, nz)
-    s = vox.shift
-    bx = i0 >> s
-    by = j0 >> s
-    bz = k0 >> s
-    slot = np.int64(vox.pages[(bz * vox.nby + by) * vox.nbx + bx])
+    bx, by, bz, b = _brick(vox, i0, j0, k0)
+    slot = np.int64(vox.pages[b])
     if slot < 0:
         gx = 0.5 * (bricked_trilinear(vox, x1, y, z) - bricked_trilinear(vox, x0, y, z))
         gy = 0.5 * (bricked_trilinear(vox, x, y1, z) - bricked_trilinear(vox, x, y0, z))
         gz = 0.5 * (bricked_trilinear(vox, x, y, z1) - bricked_trilinear(vox, x, y, z0))
         return gx, gy, gz
-    gx = 0.5 * (_slot_trilinear(vox, slot, bx, by, bz, x1, y, z) - _slot_trilinear(vox, slot, bx, by, bz, x0, y, z))
-    gy = 0.5 * (_slot_trilinear(vox, slot, bx, by, bz, x, y1, z) - _slot_trilinear(vox, slot, bx, by, bz, x, y0, z))
-    gz = 0.5 * (_slot_trilinear(vox, slot, bx, by, bz, x, y, z1) - _slot_trilinear(vox, slot, bx, by, bz, x, y, z0))
+    gx = 0.5 * (_slot_lerp(vox, slot, bx, by, bz, x1, y, z) - _slot_lerp(vox, slot, bx, by, bz, x0, y, z))
+    gy = 0.5 * (_slot_lerp(vox, slot, bx, by, bz, x, y1, z) - _slot_lerp(vox, slot, bx, by, bz, x, y0, z))
+    gz = 0.5 * (_slot_lerp(vox, slot, bx, by, bz, x, y, z1) - _slot_lerp(vox, slot, bx, by, bz, x, y, z0))
     return gx, gy, gz
 
 

@@ -59,6 +59,16 @@ def trilinear(flat, nx, ny, nz, x, y, z):
     v101 = float(flat[a10 + i1])
     v110 = float(flat[a11 + i0])
     v111 = float(flat[a11 + i1])
+    return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
+
+
+@njit(cache=True, inline="always")
+def lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz):
+    """Trilinear interpolation of a cell's corner values (``v_kji``), x then y then z.
+
+    The one interpolation every voxel layout uses (dense here, bricked in
+    :mod:`.bricked`), so the layouts return the same float for the same corners.
+    """
     c00 = v000 + fx * (v001 - v000)
     c10 = v010 + fx * (v011 - v010)
     c01 = v100 + fx * (v101 - v100)
