@@ -42,7 +42,7 @@ RENDER_PARAMETERS: dict[str, str] = {
     "volume": "the FILE argument", "tf": "--tf", "camera": "--azimuth/--elevation/--projection/--zoom",
     "width": "--size", "height": "--size", "dt": "--dt", "index": "--index", "ert": "--ert",
     "shading": "--shade", "background": "--background", "clip_box": "render(clip_box=...)",
-    "clip_open": "render(clip_open=...)", "clip_planes": "render(clip_planes=...)",
+    "clip_open": "render(clip_open=...)", "clip_planes": "render(clip_planes=...)", "clip_cap": "--clip-cap",
     "initial": "render(initial=...)", "rect": "render(rect=...)", "max_samples": "render(max_samples=...)",
     "iso": "--iso", "iso_colors": "render(iso_colors=...)",
 }
