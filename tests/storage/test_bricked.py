@@ -86,7 +86,9 @@ def test_every_index_equals_dense(scene, index, layout):
     assert img.stats["samples"] == ref.stats["samples"]
 
 
-@pytest.mark.parametrize("index", ["naive", "kdtree-deep", "grid-pc", "lbvh"])
+# Traversal on bricks is covered for every index by the DVR test above; the iso modes
+# only change the sampling side, so two indices keep the (cold) compile count down.
+@pytest.mark.parametrize("index", ["naive", "kdtree-deep"])
 @pytest.mark.parametrize("mode", ["iso", "iso+dvr"])
 def test_iso_modes_equal_dense(scene, index, mode):
     bricked = sc.BrickedVolume(ChunkedArray(scene.data), spacing=scene.spacing, origin=scene.origin)
@@ -121,7 +123,7 @@ def test_background_bricks_at_faces_and_corners():
     for tf in (sc.TransferFunction.preset("hot", (0, 1000), threshold=0.2),
                sc.TransferFunction([(0, 1, 1, 1, 0.05), (1000, 1, 0, 0, 0.9)])):  # background visible
         for cam in _cameras(dense):
-            for index in ("naive", "kdtree-deep", "grid-mm"):
+            for index in ("naive", "kdtree-deep"):
                 _same(dense, bricked, tf, cam, index=index, ert=1.0)
 
 
