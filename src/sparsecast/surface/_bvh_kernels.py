@@ -23,7 +23,7 @@ from numba import njit, prange
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
 from ._rbvh_kernels import tile_hit, tile_normal
-from ._wide_kernels import slab_origins
+from ._wide_kernels import _inv, slab_origins  # one safe inverse for both layouts
 
 #: ``node_count`` of a tile leaf
 TILE_LEAF = -1
@@ -34,14 +34,6 @@ RAY_CHUNK = 64
 def disc_leaf_code(count):
     """``node_count`` of a leaf of ``count >= 1`` discs (-2, -3, ...; decoded as ``-1 - code``)."""
     return -1 - count
-
-
-@njit(cache=True, inline="always")
-def _inv(d):
-    # A huge finite inverse keeps (lo - o) * inv free of 0 * inf = NaN.
-    if d == 0.0:
-        return 1e30
-    return 1.0 / d
 
 
 @njit(cache=True, inline="always")
