@@ -17,6 +17,7 @@ from . import datasets  # noqa: E402
 from .camera import Camera
 from .elements import ParticleSet
 from .errors import (
+    DistributedError,
     FileFormatError,
     ParameterError,
     SparsecastError,
@@ -27,6 +28,7 @@ from .index import SpatialIndex, available_indices, build_index
 from .io import load_series, load_volume, save_volume
 from .series import VolumeSeries
 from .storage import BrickedVolume, MemoryBudgetError
+from .distributed import ClusterVolume
 from .image import Image
 from .render import render
 from .io.particles import load_particles
@@ -52,6 +54,8 @@ __all__ = [
     "BrickedVolume",
     "MemoryBudgetError",
     "Camera",
+    "ClusterVolume",
+    "DistributedError",
     "FileFormatError",
     "Image",
     "PRESETS",

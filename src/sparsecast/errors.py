@@ -14,6 +14,7 @@ __all__ = [
     "VolumeDataError",
     "FileFormatError",
     "TransferFunctionError",
+    "DistributedError",
 ]
 
 
@@ -35,3 +36,7 @@ class FileFormatError(SparsecastError):
 
 class TransferFunctionError(SparsecastError):
     """A transfer function definition or preset is invalid."""
+
+
+class DistributedError(SparsecastError):
+    """A cluster render failed: no scheduler, no workers, a frame past its timeout."""

@@ -161,6 +161,11 @@ class Volume:
     (6, 5, 4)
     """
 
+    #: how a file-backed volume's voxels can be opened again elsewhere (an
+    #: :class:`~sparsecast.io.sources.SourceRecipe` that :func:`~sparsecast.io.load_volume`
+    #: sets for memory-mapped and lazy files); None for voxels that live only here
+    source_recipe = None
+
     def __init__(
         self,
         data,

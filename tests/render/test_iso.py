@@ -174,7 +174,7 @@ def test_the_first_iso_frame_after_dvr_warms_up_outside_the_timing():
     (before, the viewer's first isosurface frame on bonsai took 10 s of "frame" time)."""
     from sparsecast.kernels.iso import Iso
     from sparsecast.kernels.march import Dvr
-    from sparsecast.render import api
+    from sparsecast.render import local as api
 
     vol = _sphere(16, 4.0)
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0))

@@ -3,10 +3,10 @@
 A generated n-body-like float32 field (:func:`nbody_slabs`: a few thousand Gaussian
 halos strung along filaments, about 3 % of the 8^3 bricks non-empty at 1024^3) is
 written slab by slab (the generator never holds the whole array) to Zarr v3 (zstd
-chunks of 64^3), and to ``.npy`` and raw copies where the disk has room for them
-(:func:`_fits_on_disk`). Every (size, source kind) case runs in a **fresh subprocess**
-(``python -m sparsecast.bench.scale``), so that its peak RSS
-(``getrusage(RUSAGE_SELF).ru_maxrss`` at the end) is that case's alone. The child
+chunks of 64^3), and to ``.npy`` and raw copies (float32, and quantised to uint8: the
+``-u8`` kinds) where the disk has room for them (:func:`_fits_on_disk`). Every (size,
+source kind) case runs in a **fresh subprocess** (``python -m sparsecast.bench.scale``),
+so that its peak RSS (``VmHWM``, see :func:`_peak_rss`) is that case's alone. The child
 first runs the whole case on a 24^3 file of the same kind, so every kernel is
 compiled (or loaded from the cache) before anything is timed, then measures:
 
@@ -49,8 +49,11 @@ __all__ = ["run", "nbody_slabs", "write_field", "SIZES", "KINDS", "NAIVE_MAX"]
 
 #: edges of the default run; 2048 joins with SPARSECAST_BENCH_SCALE_MAX=2048
 SIZES = (256, 512, 1024)
-#: source kinds, in the order they run
-KINDS = ("zarr", "npy", "raw")
+#: source kinds, in the order they run (``-u8``: the field quantised to uint8, the
+#: 1 GiB-at-1024^3 case of the time-to-first-image target)
+KINDS = ("zarr", "npy", "raw", "npy-u8", "raw-u8")
+#: uint8 copies store ``round(field * U8_SCALE)`` clipped to 255 (halo cores saturate)
+U8_SCALE = 48.0
 #: largest edge naive renders at (it takes every sample: minutes per frame above)
 NAIVE_MAX = 512
 #: halos of the field, and the filaments they are strung along (unit-cube positions)
@@ -115,9 +118,9 @@ def write_field(n: int, folder: Path, kinds=KINDS, chunk: int = CHUNK) -> dict[s
 
     folder.mkdir(parents=True, exist_ok=True)
     dense = n ** 3 * 4
-    kinds = [k for k in kinds if k == "zarr" or _fits_on_disk(folder, dense)]
+    kinds = [k for k in kinds if k == "zarr" or _fits_on_disk(folder, dense // 4 if k.endswith("-u8") else dense)]
     paths: dict[str, Path] = {}
-    z = npy = raw = None
+    z = npy = raw = npy8 = raw8 = None
     if "zarr" in kinds:
         paths["zarr"] = folder / f"nbody-{n}.zarr"
         z = zarr.create_array(str(paths["zarr"]), shape=(n, n, n), chunks=(chunk,) * 3, dtype="float32",
@@ -129,6 +132,12 @@ def write_field(n: int, folder: Path, kinds=KINDS, chunk: int = CHUNK) -> dict[s
     if "raw" in kinds:
         paths["raw"] = folder / f"nbody-{n}_{n}x{n}x{n}_float32.raw"
         raw = open(paths["raw"], "wb")
+    if "npy-u8" in kinds:
+        paths["npy-u8"] = folder / f"nbody-{n}-u8.npy"
+        npy8 = np.lib.format.open_memmap(paths["npy-u8"], mode="w+", dtype=np.uint8, shape=(n, n, n))
+    if "raw-u8" in kinds:
+        paths["raw-u8"] = folder / f"nbody-{n}-u8_{n}x{n}x{n}_uint8.raw"
+        raw8 = open(paths["raw-u8"], "wb")
     try:
         for z0, slab in nbody_slabs(n, slab=chunk):
             if z is not None:
@@ -137,12 +146,20 @@ def write_field(n: int, folder: Path, kinds=KINDS, chunk: int = CHUNK) -> dict[s
                 npy[z0:z0 + len(slab)] = slab
             if raw is not None:
                 raw.write(slab.astype("<f4", copy=False).tobytes())
+            if npy8 is not None or raw8 is not None:
+                q = np.minimum(np.rint(slab * U8_SCALE), 255).astype(np.uint8)
+                if npy8 is not None:
+                    npy8[z0:z0 + len(slab)] = q
+                if raw8 is not None:
+                    raw8.write(q.tobytes())
     finally:
-        if npy is not None:
-            npy.flush()
-            del npy
-        if raw is not None:
-            raw.close()
+        for m in (npy, npy8):
+            if m is not None:
+                m.flush()
+        del npy, npy8
+        for f in (raw, raw8):
+            if f is not None:
+                f.close()
     return paths
 
 
@@ -243,7 +260,7 @@ def _measure(case: dict) -> list[dict]:
                         ms=statistics.median(ms), ms_runs=ms, ms_min=min(ms), ms_max=max(ms),
                         samples=int(img.stats["samples"]), bytes=int(idx.nbytes)))
         del idx, rebuilt
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # KiB on Linux
+    peak = _peak_rss()
     dense = voxels * vol.dtype.itemsize
     bricked = hasattr(vol, "resident_bricks")
     nb = int(np.prod(stats.shape))
@@ -256,6 +273,21 @@ def _measure(case: dict) -> list[dict]:
                 stored_bricks=int(vol.stored_bricks) if bricked else nb,
                 pool_bytes=int(vol.nbytes))
     return [load, *out]
+
+
+def _peak_rss() -> int:
+    """This process's peak resident set in bytes: ``VmHWM`` (the high-water mark of its
+    own address space), not ``getrusage``'s ``ru_maxrss``, which Linux carries across
+    ``fork`` + ``exec``: a child of a runner that had just written a 4 GiB memory map
+    reported the runner's 4.9 GB as its own."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # KiB on Linux
 
 
 def main(argv: list[str]) -> None:

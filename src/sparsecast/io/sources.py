@@ -50,7 +50,7 @@ from .names import stem_of, suffix_of
 from .nrrd import raw_payload
 from .raw import raw_layout
 
-__all__ = ["Source", "Level", "SourceKind", "open_source", "split_hdf5_path", "is_lazy_path", "is_zarr_dir",
+__all__ = ["Source", "SourceRecipe", "Level", "SourceKind", "open_source", "split_hdf5_path", "is_lazy_path", "is_zarr_dir",
            "SOURCE_ATTRS"]
 
 SourceKind = Literal["zarr", "ome-zarr", "hdf5", "npy", "raw", "nrrd"]
@@ -343,6 +343,28 @@ def is_lazy_path(path: str | os.PathLike) -> bool:
         return True
     p = Path(path)
     return is_zarr_dir(p) or suffix_of(p) in (".npy", ".nrrd", ".nhdr", ".zarr") + _RAW_SUFFIXES
+
+
+@dataclass(frozen=True)
+class SourceRecipe:
+    """How to open a source again, elsewhere: what a cluster worker needs to read its
+    piece of a file itself instead of receiving the voxels (the path must be readable
+    there, e.g. on a shared file system).
+
+    Attributes
+    ----------
+    path : str
+        As given to :func:`open_source`.
+    options : dict
+        Its keyword arguments (level, missing_chunks, raw layout, allow_outside).
+    """
+
+    path: str
+    options: dict
+
+    def open(self) -> Source:
+        """:func:`open_source` with the recorded arguments."""
+        return open_source(self.path, **self.options)
 
 
 def open_source(

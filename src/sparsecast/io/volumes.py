@@ -30,7 +30,7 @@ from .reading import Read
 from .tiff import read_tiff_dir
 from .budget import memory_limit as default_memory_limit
 from .nrrd import EncodedPayloadError
-from .sources import is_lazy_path, is_zarr_dir, open_source, split_hdf5_path
+from .sources import SourceRecipe, is_lazy_path, is_zarr_dir, open_source, split_hdf5_path
 from ..storage import BrickedVolume, parse_memory
 
 __all__ = [
@@ -199,21 +199,30 @@ def load_volume(
         source = _try_source(path, level, dims, dtype, byte_order, header_offset, allow_outside, lazy,
                              missing_chunks)
         if source is not None:
+            # Cluster workers reopen the file from this instead of receiving its voxels.
+            recipe = SourceRecipe(path, dict(level=level, dims=dims, dtype=dtype, byte_order=byte_order,
+                                             header_offset=header_offset or 0, allow_outside=bool(allow_outside),
+                                             missing_chunks=missing_chunks))
             wants_lazy = lazy if lazy is not None else source.nbytes > (budget or default_memory_limit())
             if wants_lazy:
                 sp = spacing if spacing is not None else source.spacing
                 org = origin if origin is not None else source.origin
-                return BrickedVolume(source.array, sp, org, name=source.name, brick_size=brick_size,
-                                     background=background, memory_limit=budget, nonfinite=nonfinite,
-                                     orientation=orientation if orientation is not None else source.orientation,
-                                     progress=progress)
+                vol = BrickedVolume(source.array, sp, org, name=source.name, brick_size=brick_size,
+                                    background=background, memory_limit=budget, nonfinite=nonfinite,
+                                    orientation=orientation if orientation is not None else source.orientation,
+                                    progress=progress)
+                vol.source_recipe = recipe
+                return vol
             if source.kind in _MAPPED:
                 # The dense volume's voxels are the read-only memory map itself: no copy
                 # (np.load / np.fromfile copied 1 GiB from the page cache in 0.15-0.3 s),
                 # the pages arrive as the brick statistics read them, on every core.
-                return _make_volume(source.array[...], spacing if spacing is not None else 1.0,
-                                    origin if origin is not None else 0.0, source.path, source.name,
-                                    nonfinite, orientation)
+                vol = _make_volume(source.array[...], spacing if spacing is not None else 1.0,
+                                   origin if origin is not None else 0.0, source.path, source.name,
+                                   nonfinite, orientation)
+                if nonfinite == "raise" or vol.dtype.kind != "f":  # else the volume holds replaced values
+                    vol.source_recipe = recipe
+                return vol
             if _store_only(path):  # Zarr / HDF5 that fits: read it into a dense volume
                 sp = spacing if spacing is not None else source.spacing
                 org = origin if origin is not None else source.origin

@@ -222,6 +222,17 @@ class BrickedVolume(Volume):
                     self.brick_labels(b)
             self._source = None  # everything that can be read is in the pool
 
+    def __getstate__(self) -> dict:
+        # Picklable (a Dask worker may spill a piece to disk or move it): the lock is
+        # this process's.
+        state = self.__dict__.copy()
+        state.pop("_lock", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     # -- what the base class reads from ``_data`` --------------------------
     @property
     def data(self) -> np.ndarray:
