@@ -224,3 +224,63 @@ def test_what_a_cluster_cannot_render_is_refused_before_any_work(client, blobs):
         sc.render(blobs, tf, cam, 8, 8, client="tcp://somewhere:8786")
     with pytest.raises(sc.ParameterError, match="pieces: applies only with client"):
         sc.render(blobs, tf, cam, 8, 8, pieces=2)
+
+
+def test_cli_render_on_a_scheduler_equals_the_local_render(client, tmp_path, monkeypatch, capsys):
+    from cli_runner import run_cli
+
+    path = tmp_path / "blobs.npy"
+    vol = sparse_volume(np.random.default_rng(2), (16, 20, 24), 6)
+    np.save(path, vol.data)
+    args = ("render", str(path), "--size", "40x30", "--ert", "1", "--array")
+    code, out, err = run_cli(monkeypatch, capsys, *args, str(tmp_path / "c.npy"), "-o", str(tmp_path / "c.png"),
+                             "--scheduler", client.scheduler.address, "--pieces", "3")
+    assert code == 0, err
+    assert "on 3 pieces, 2 workers" in out
+    code, out, err = run_cli(monkeypatch, capsys, *args, str(tmp_path / "l.npy"), "-o", str(tmp_path / "l.png"))
+    assert code == 0, err
+    assert np.abs(np.load(tmp_path / "c.npy") - np.load(tmp_path / "l.npy")).max() <= TOL
+
+
+def test_cli_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    from cli_runner import run_cli
+
+    code, out, err = run_cli(monkeypatch, capsys, "render", "-o", str(tmp_path / "x.png"),
+                             "--scheduler", "tcp://127.0.0.1:9")
+    assert code != 0
+    assert "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'" in err
+    assert "Traceback" not in err and not (tmp_path / "x.png").exists()
+    code, _, err = run_cli(monkeypatch, capsys, "render", "-o", str(tmp_path / "x.png"), "--pieces", "2")
+    assert code != 0 and "--pieces 2: applies only with --scheduler" in err
+
+
+def test_the_viewer_session_renders_dvr_frames_on_the_cluster(client, blobs):
+    from sparsecast.viewer.messages import RenderRequest
+    from sparsecast.viewer.session import Session, ViewerData
+
+    tf = sc.TransferFunction.preset("viridis", blobs.value_range, threshold=0.1)
+    data = ViewerData.create(blobs, tf)
+    local = Session(data)
+    snap = local.update(RenderRequest(width=48, height=40))
+    local.render_frame(snap)
+    data.client, data.pieces = client, 2
+    remote = Session(data)
+    _, status = remote.render_frame(remote.update(RenderRequest(width=48, height=40)))
+    assert status["pieces"] == 2
+    assert np.abs(remote.last_rgba - local.last_rgba).max() <= TOL
+
+
+def test_pieces_kept_for_a_volume_go_when_the_volume_goes(client):
+    import gc
+    import weakref
+
+    vol = sparse_volume(np.random.default_rng(8), (12, 12, 20), 3)
+    tf = sc.TransferFunction.preset("viridis", vol.value_range)
+    cam = sc.Camera.orbit(vol)
+    first = sc.render(vol, tf, cam, 16, 16, client=client, pieces=2)
+    again = sc.render(vol, tf, cam, 16, 16, client=client, pieces=2)  # the same pieces, indices kept
+    assert again.stats["build_ms"] == 0.0 and first.stats["pieces"] == 2
+    ref = weakref.ref(vol)
+    del vol
+    gc.collect()
+    assert ref() is None

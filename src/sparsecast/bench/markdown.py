@@ -253,7 +253,8 @@ def _sections(records: list[Record]) -> list[str]:
             by_section[r["section"]].append(r)
     out = []
     titles = {"irt": "Transfer-function range queries (iterative range tree vs prefix count)",
-              "bih": "Bounding interval hierarchy", "surface": "Surfaces: rasterized BVH"}
+              "bih": "Bounding interval hierarchy", "surface": "Surfaces: rasterized BVH",
+              "scale": "Volumes larger than memory", "distributed": "Rendering on a Dask cluster"}
     for name, recs in by_section.items():
         out += [f"## {titles.get(name, name)}", ""]
         by_phase: dict[str, list[Record]] = defaultdict(list)

@@ -170,7 +170,7 @@ def format_scale(records: list[dict[str, Any]]):
                           *[""] * 9, str(r.get("reason") or "skipped"))
     table.caption = ("open: load_volume (a lazy volume's statistics pass included); first image: load_volume "
                      "to the first render(index='auto'); frame: median of the timed frames after a warm-up; "
-                     "peak RSS: getrusage of the case's own process")
+                     "peak RSS: VmHWM of the case's own process")
     return table
 
 

@@ -200,6 +200,11 @@ SUITES: dict[str, Suite] = {
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
               "CT/MR volumes (bench.features)", short="features section", duration="4 min", datasets=(), irt=False,
               sections=("features",)),
+        Suite("distributed", "rendering on a Dask LocalCluster of 2 one-thread workers: a 512^3 float32 field "
+              "cut into 1, 2 and 4 pieces against one process, interleaved: frame and TF-change latency, bytes "
+              "moved, compositing ms vs image size, a model of N machines (bench.distributed)",
+              short="distributed section", duration=None, datasets=(), irt=False, sizes=((512, 512),),
+              sections=("distributed",)),
         # Each (size, kind) case is a fresh subprocess; 2048^3 (32 GB dense) only with
         # SPARSECAST_BENCH_SCALE_MAX=2048.
         Suite("scale", "volumes larger than memory: a generated n-body float32 field at 256^3/512^3/1024^3 as "

@@ -80,6 +80,11 @@ MemoryLimitOpt = Annotated[Optional[str], typer.Option(
     help="Most memory a lazy volume's resident bricks may take, e.g. 2GB or 512MiB.")]
 LevelOpt = Annotated[Optional[str], typer.Option(
     help="OME-Zarr: the resolution level, by index or path (default: the finest).")]
+SchedulerOpt = Annotated[Optional[str], typer.Option(
+    help="Render on the Dask cluster of this scheduler (tcp://host:8786): pieces stay on its workers across "
+         "frames; files must be readable by the workers (else each piece's voxels are sent once).")]
+PiecesOpt = Annotated[Optional[int], typer.Option(
+    help="With --scheduler: pieces to cut the volume into (default: one per worker thread).")]
 CellOpt = Annotated[Optional[int], typer.Option(help="Grid indices: voxels per macrocell edge (4, 8, 16, 32, 64).")]
 OrientationOpt = Annotated[Optional[str], typer.Option(
     help="Anatomical axis codes of +i, +j, +k, e.g. RAS or LPS (default: the file's NRRD space / NIfTI "

@@ -14,7 +14,7 @@ from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
     AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, OutputOpt,
-    ProjectionOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
+    PiecesOpt, ProjectionOpt, SchedulerOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame, smoothed_labels
@@ -81,6 +81,8 @@ def render(
     memory_limit: MemoryLimitOpt = None,
     level: LevelOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
+    scheduler: SchedulerOpt = None,
+    pieces: PiecesOpt = None,
 ) -> None:
     """Render a volume (default: the built-in sparse demo) to an image."""
     from ..camera import Camera
@@ -111,6 +113,13 @@ def render(
     if cell is not None:
         index_options["cell"] = cell
         check_index_options(index_name, index_options)
+    if pieces is not None and scheduler is None:
+        raise ParameterError(f"--pieces {pieces}: applies only with --scheduler (a Dask cluster)")
+    cluster = {}
+    if scheduler is not None:
+        from ..distributed import connect
+
+        cluster = dict(client=connect(scheduler), pieces=pieces)  # before any work: an unreachable one says so
     t0 = time.perf_counter()
     if series_mode:
         from .series import render_series
@@ -119,7 +128,7 @@ def render(
                       size=(width, height), orbit=(azimuth, elevation, up, view, projection, zoom),
                       render_kw=dict(dt=dt, index=index_name, ert=ert, shading=shade,
                                      background=parse_background(background), clip_box=box, clip_planes=planes,
-                                     clip_cap=clip_cap, mode=mode, iso=iso or None, **index_options),
+                                     clip_cap=clip_cap, mode=mode, iso=iso or None, **cluster, **index_options),
                       smooth_labels=smooth_labels,
                       load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
         return
@@ -135,12 +144,17 @@ def render(
     bg = parse_background(background)
     img = do_render(vol, tfn, cam, width, height, dt=dt, index=index_name, ert=ert, shading=shade,
                     background=bg, clip_box=box, clip_planes=planes, clip_cap=clip_cap, mode=mode, iso=iso or None,
-                    **index_options)
+                    **cluster, **index_options)
+    if cluster:
+        cluster["client"].close()
     img.save(output)
     if array is not None:
         img.save(array)
     s = img.stats
     chosen = f"index {s['index']}" + (f" (auto: {s['auto']['reason']})" if "auto" in s else "")
+    if "pieces" in s:
+        chosen = (f"index {', '.join(s['index'])} on {s['pieces']} pieces, {s['workers']} workers "
+                  f"({s['bytes_moved'] / 2**20:.1f} MiB moved)")
     # First-use compilation is timed apart from the build and the frame (both exclude it),
     # and named only when there was some: a start from the kernel cache prints none.
     note = compile_note(compile_seconds() - c0)

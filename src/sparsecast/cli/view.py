@@ -9,7 +9,8 @@ import typer
 from .._util.checks import as_int
 from ..errors import ParameterError
 from .app import (
-    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, SpacingOpt, TfOpt,
+    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, PiecesOpt, SchedulerOpt,
+    SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame
@@ -44,6 +45,8 @@ def view(
     lazy: LazyOpt = None,
     memory_limit: MemoryLimitOpt = None,
     level: LevelOpt = None,
+    scheduler: SchedulerOpt = None,
+    pieces: PiecesOpt = None,
 ) -> None:
     """Interactive viewer in the web browser: orbit, zoom, edit the TF, switch indices and
     render modes (isovalue slider), clip, show or hide labels (--tf labels), step through
@@ -62,6 +65,13 @@ def view(
         raise ParameterError(f"--mode: expected one of {', '.join(MODES)}, got {mode!r}")
     if iso and mode == "dvr":
         raise ParameterError("--iso: isovalues apply with --mode iso or iso+dvr; got --mode dvr")
+    if pieces is not None and scheduler is None:
+        raise ParameterError(f"--pieces {pieces}: applies only with --scheduler (a Dask cluster)")
+    client = None
+    if scheduler is not None:
+        from ..distributed import connect
+
+        client = connect(scheduler)
     series = None
     if time_step is not None:
         if file is None:
@@ -84,6 +94,7 @@ def view(
     if not tf.lower().endswith(".json") and not isinstance(tfn, LabelTransferFunction):
         # Editable form of a preset: its colour map plus a few opacity points.
         data.tf = spec_from_preset(tf, tfn.value_range, threshold)
+    data.client, data.pieces = client, pieces
     server = ViewerServer(data, host, port, allow_remote=allow_remote)
     with err.status("preparing the index and kernels"):
         data.warm_up()

@@ -102,7 +102,11 @@ class ClusterVolume:
             raise ParameterError(f"volume: expected a sparsecast.Volume, got {type(volume).__name__}")
         volume.require_renderable()
         self.client = _check_client(client)
-        self.volume = volume
+        # The geometry only: the cache in render_on_cluster is keyed weakly on the volume,
+        # which a reference from here would keep alive for ever.
+        self.shape = tuple(volume.shape)
+        self.spacing = np.array(volume.spacing, np.float64)
+        self.origin = np.array(volume.origin, np.float64)
         threads = self.client.nthreads()
         if not threads:
             raise DistributedError(f"client: the cluster at {self.client.scheduler.address} has no workers")
@@ -134,8 +138,10 @@ class ClusterVolume:
             spec = PieceSpec(
                 number=p, box=((bx0, by0, bz0), (bx1, by1, bz1)), shape=volume.shape,
                 spacing=tuple(float(s) for s in volume.spacing), origin=tuple(float(o) for o in volume.origin),
-                name=volume.name, brick_size=B, background=background, nonfinite="replace" if dense is not None
-                else getattr(volume, "_nonfinite", "raise"),
+                name=volume.name, brick_size=B, background=background,
+                # shipped voxels were checked (or replaced) here already
+                nonfinite="replace" if dense is not None else getattr(volume, "nonfinite", "raise"),
+                value_range=tuple(float(v) for v in volume.value_range),
                 vmin=np.ascontiguousarray(stats.vmin[bz0:bz1, by0:by1, bx0:bx1]),
                 vmax=np.ascontiguousarray(stats.vmax[bz0:bz1, by0:by1, bx0:bx1]),
                 recipe=recipe, window=window,
@@ -183,10 +189,9 @@ class ClusterVolume:
             timeout = DEFAULT_TIMEOUT
         if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
             raise ParameterError(f"timeout: expected seconds > 0, got {timeout!r}")
-        vol = self.volume
         known = {k: frame.pop(k) for k in list(frame) if k in _FRAME_KEYS}
         if known.get("dt") is None:
-            known["dt"] = 0.5 * float(vol.spacing.min())  # every piece on the same lattice
+            known["dt"] = 0.5 * float(self.spacing.min())  # every piece on the same lattice
         user = _user_clip(clip_box, clip_open)
         key = tf_key(tf)
         base = dict(tf=tf, tf_key=key, camera=camera, width=width, height=height, index=index,
@@ -307,11 +312,10 @@ class ClusterVolume:
         faces pushed one voxel out, so they clamp to it exactly; shared faces open above),
         its open faces, and the box that the screen rectangle is computed from; None
         when the user's clip box leaves nothing of it."""
-        vol = self.volume
-        nz, ny, nx = vol.shape
+        nz, ny, nx = self.shape
         top = np.array([nx - 1, ny - 1, nz - 1], np.float64)
-        lo_i, hi_i = self.tree.voxel_box(p, vol.shape)
-        org, sp = vol.origin.astype(np.float64), vol.spacing.astype(np.float64)
+        lo_i, hi_i = self.tree.voxel_box(p, self.shape)
+        org, sp = self.origin, self.spacing
         lo = np.where(lo_i > 0, org + sp * lo_i, org - sp)
         hi = np.where(hi_i < top, org + sp * hi_i, org + sp * (top + 1.0))
         open_lo = np.zeros(3, bool)
@@ -331,10 +335,9 @@ class ClusterVolume:
 
     def _near_low(self, camera: Camera):
         """``near_low(axis, plane)`` for the tree: whether the side below a cut is in front."""
-        vol = self.volume
         B = self.tree.brick_size
         if camera.projection == "perspective":
-            eye = (np.asarray(camera.eye, np.float64) - vol.origin) / vol.spacing
+            eye = (np.asarray(camera.eye, np.float64) - self.origin) / self.spacing
             return lambda axis, plane: bool(eye[axis] < plane * B)
         forward = camera.basis()[0]
         return lambda axis, plane: bool(forward[axis] >= 0.0)

@@ -27,6 +27,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..index import build_index
 from ..render.local import render_local
+from ..render.schedule import limit_threads
 from ..storage import BrickedVolume
 from ..volume import BrickStats
 from .composite import Layer
@@ -77,6 +78,7 @@ class PieceSpec:
     brick_size: int
     background: float
     nonfinite: str
+    value_range: tuple[float, float]
     vmin: np.ndarray
     vmax: np.ndarray
     recipe: Any = None
@@ -144,22 +146,19 @@ def load_piece(spec: PieceSpec) -> Piece:
         raise ParameterError(f"piece {spec.number}: neither a source recipe nor a window of voxels")
     vol = BrickedVolume(array, spec.spacing, spec.origin, name=f"{spec.name} [piece {spec.number}]",
                         brick_size=B, background=spec.background, stats=BrickStats(B, vmin, vmax, 0.0),
-                        nonfinite=spec.nonfinite, eager=True)
+                        nonfinite=spec.nonfinite, eager=True, value_range=spec.value_range)
     return Piece(spec, vol, (time.perf_counter() - t0) * 1e3, int(vol.loads["bytes_read"]))
 
 
 def _threads() -> None:
-    """Render with as many threads as the worker runs tasks (a 1-thread worker beside
-    another on the same machine must not take both cores)."""
-    import numba
-
+    """Render with as many threads as the worker runs tasks."""
     try:
         from distributed import get_worker
 
         n = get_worker().state.nthreads
     except (ImportError, ValueError, AttributeError):
-        return
-    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+        return  # not on a worker (a test calling the function directly)
+    limit_threads(n)
 
 
 def render_piece(piece: Piece, job: dict) -> Layer:

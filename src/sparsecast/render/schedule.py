@@ -17,7 +17,7 @@ import numba
 
 from ..kernels.tiles import tile_count
 
-__all__ = ["run_tiles", "n_threads"]
+__all__ = ["run_tiles", "n_threads", "limit_threads"]
 
 #: chunks per thread: enough to balance sparse frames, few enough that the
 #: per-chunk call (argument unboxing, ~10 us) stays negligible
@@ -34,6 +34,13 @@ _pool_lock = threading.Lock()
 def n_threads() -> int:
     """Threads a frame is spread over."""
     return max(1, int(numba.get_num_threads()))
+
+
+def limit_threads(n: int) -> None:
+    """Render with at most ``n`` threads from the calling thread on (Numba's thread count
+    is per calling thread): a one-thread Dask worker beside another on one machine must
+    not take every core."""
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
 
 
 def _get_pool(n: int) -> ThreadPoolExecutor:

@@ -128,6 +128,10 @@ class BrickedVolume(Volume):
         Default: when ``source`` is an in-memory ndarray and no limit is set.
     progress : bool or callable, optional
         Progress of the statistics pass over a lazy source (see :func:`.scan.scan`).
+    value_range : (float, float), optional
+        The source's finite value range, when ``stats`` cover only part of it (a piece
+        of a volume on a cluster): what ``value_range`` reports and NaN/Inf are replaced
+        by. Default: the range of the statistics.
 
     Examples
     --------
@@ -153,6 +157,7 @@ class BrickedVolume(Volume):
         orientation=None,
         eager: bool | None = None,
         progress=None,
+        value_range: tuple[float, float] | None = None,
     ) -> None:
         shape = tuple(int(n) for n in getattr(source, "shape", ()))
         if len(shape) != 3:
@@ -192,6 +197,8 @@ class BrickedVolume(Volume):
         vmin = stats.vmin.ravel()
         vmax = stats.vmax.ravel()
         self._range = (float(vmin.min()), float(vmax.max()))
+        if value_range is not None:
+            self._range = (float(value_range[0]), float(value_range[1]))
         bg = self.background
         self._stored = ~((vmin == bg) & (vmax == bg))
         self._stored_ids = np.flatnonzero(self._stored)
@@ -280,6 +287,11 @@ class BrickedVolume(Volume):
     def resident_bricks(self) -> int:
         """Bricks in the pool now."""
         return int(np.count_nonzero(self._pages >= 0))
+
+    @property
+    def nonfinite(self) -> str:
+        """The NaN/Inf policy bricks are read with (``"raise"`` or ``"replace"``)."""
+        return self._nonfinite
 
     @property
     def lazy(self) -> bool:

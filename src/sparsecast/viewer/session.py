@@ -206,6 +206,11 @@ class ViewerData:
     #: isovalues (data units); default: the middle of the value range
     iso: tuple[float, ...] | None = None
     clip: ClipSpec = FULL_CLIP
+    #: a ``dask.distributed.Client``: DVR frames render on its cluster (``view
+    #: --scheduler``); the iso modes and the naive-time probe stay in this process
+    client: Any = None
+    #: pieces to cut the volume into on the cluster (default one per worker thread)
+    pieces: int | None = None
 
     def __post_init__(self) -> None:
         Camera.orbit(self.volume, up=self.up, view=self.view)  # a bad frame fails here, not per frame
@@ -460,10 +465,17 @@ class Session:
             ispec = IndexSpec(name, None)
         if not s.preview:
             self._settled = s.classification
-        idx, build_ms, rebuilt = self._index(s, volume, classify, ispec)
-        # DVR: the TF the cached index was built for (equal to tf; render checks identity).
-        img = render(volume, idx.tf if s.mode == "dvr" else tf, self._camera(s.camera, volume), s.width, s.height,
-                     index=idx, **self._render_kw(s, volume))
+        if self.data.client is not None and s.mode == "dvr":
+            # The pieces on the cluster keep and rebuild their own indices.
+            img = render(volume, tf, self._camera(s.camera, volume), s.width, s.height, index=ispec.name,
+                         client=self.data.client, pieces=self.data.pieces, **self._render_kw(s, volume))
+            idx, build_ms = None, float(img.stats["build_ms"])
+            rebuilt = build_ms > 0
+        else:
+            idx, build_ms, rebuilt = self._index(s, volume, classify, ispec)
+            # DVR: the TF the cached index was built for (equal to tf; render checks identity).
+            img = render(volume, idx.tf if s.mode == "dvr" else tf, self._camera(s.camera, volume), s.width,
+                         s.height, index=idx, **self._render_kw(s, volume))
         st = img.stats
         if ispec.name == "naive":
             self._remember_naive(self._view_key(s), st["ms"])
@@ -493,6 +505,7 @@ class Session:
             "total_ms": round((time.perf_counter() - t_all) * 1e3, 3),
             "samples": int(st["samples"]),
             "samples_nonempty": int(st["samples_nonempty"]),
+            "pieces": st.get("pieces"),
             "naive_ms": None if naive_ms is None else round(naive_ms, 3),
             "speedup": None if naive_ms is None or st["ms"] <= 0 else round(naive_ms / st["ms"], 2),
             "speedup_source": None if naive_ms is None else ("measured" if ispec.name == "naive" else "estimated"),
