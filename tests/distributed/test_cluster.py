@@ -267,7 +267,9 @@ def test_the_viewer_session_renders_dvr_frames_on_the_cluster(client, blobs):
     remote = Session(data)
     _, status = remote.render_frame(remote.update(RenderRequest(width=48, height=40)))
     assert status["pieces"] == 2
-    assert np.abs(remote.last_rgba - local.last_rgba).max() <= TOL
+    # the viewer terminates rays at ert = 0.99 and its pieces run at once: each stops on
+    # its own opacity, within 1 - ert of one process
+    assert np.abs(remote.last_rgba - local.last_rgba).max() <= 1 - 0.99 + 1e-6
 
 
 def test_pieces_kept_for_a_volume_go_when_the_volume_goes(client):
