@@ -17,14 +17,27 @@ from .reading import Read, read_guard
 __all__ = ["read_nifti", "write_nifti"]
 
 
-def read_nifti(path: Path) -> Read:
+def nifti_steps(path: Path) -> int | None:
+    """Time steps of a 4-D NIfTI image ``(x, y, z, t)`` from its header, None for 3-D."""
+    import nibabel as nib
+
+    require_regular_file(path, "NIfTI file")
+    img = read_guard(path, "NIfTI", nib.load, str(path))
+    shape = tuple(int(n) for n in img.header.get_data_shape())
+    while len(shape) > 3 and shape[-1] == 1:
+        shape = shape[:-1]
+    return shape[3] if len(shape) == 4 else None
+
+
+def read_nifti(path: Path, step: int | None = None) -> Read:
     """A 3-D scalar NIfTI-1/2 image (trailing singleton axes dropped).
 
     The on-disk dtype is kept unless ``scl_slope``/``scl_inter`` are set and
     non-trivial (then the scaled values, at least float32); spacing from the zooms,
     origin from the affine's translation; the orientation (axis codes) from the affine
     (``aff2axcodes``) when the sform or qform code says it maps to a patient frame (a
-    file with both codes 0 is ANALYZE-style: orientation unknown).
+    file with both codes 0 is ANALYZE-style: orientation unknown). ``step``: volume
+    ``t`` of a 4-D ``(x, y, z, t)`` image, read alone through nibabel's array proxy.
     """
     import nibabel as nib
 
@@ -37,9 +50,18 @@ def read_nifti(path: Path) -> Read:
         if nib.is_proxy(dataobj):
             # nibabel moves scl_slope/scl_inter from the header into the proxy on load
             # (the image's header then reads NaN), so take them from the proxy.
-            raw = np.asarray(dataobj.get_unscaled())
             slope = getattr(dataobj, "slope", None)
             inter = getattr(dataobj, "inter", None)
+            if step is not None:
+                # One volume: the proxy reads only its bytes (a .gz decompresses up to them)
+                # and scales them; bring the dtype to what the 3-D path gives.
+                index = (slice(None),) * 3 + (step,) + (0,) * (len(dataobj.shape) - 4)
+                raw = np.asarray(dataobj[index])
+                if raw.dtype.kind == "f" and img.get_data_dtype().kind != "f":
+                    raw = raw.astype(np.result_type(img.get_data_dtype(), np.float32))
+                slope = inter = None
+            else:
+                raw = np.asarray(dataobj.get_unscaled())
         else:
             raw = np.asanyarray(dataobj)
             slope, inter = img.header.get_slope_inter()

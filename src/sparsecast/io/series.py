@@ -1,4 +1,5 @@
-"""Reading time series: a folder or glob of volume files, a list of paths, a 4-D array or ``.npy``."""
+"""Reading time series: a folder or glob of volume files, a list of paths, a 4-D array,
+``.npy`` or NIfTI, or a Zarr / OME-Zarr store with a time axis."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ from ..series import DEFAULT_CACHE_BYTES, VolumeSeries
 from .files import require_regular_file
 from .formats import READ_SUFFIXES
 from .names import natural_key, suffix_of
+from .nifti import nifti_steps, read_nifti
+from .sources import is_zarr_dir, open_source, time_steps
 from .volumes import load_volume
 
 __all__ = ["load_series"]
@@ -29,8 +32,12 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
     source : path, str, sequence of paths, or array
         A directory (every volume file in it, in natural name order: ``t2`` before
         ``t10``), a glob pattern (``"run/step_*.nrrd"``), a list of files (in the
-        given order), a ``(t, nz, ny, nx)`` array, or a 4-D ``.npy`` file (memory-mapped:
-        a step is read when it is asked for).
+        given order), a ``(t, nz, ny, nx)`` array, a 4-D ``.npy`` file (memory-mapped:
+        a step is read when it is asked for), a 4-D NIfTI image ``(x, y, z, t)`` (one
+        volume read per step), or a Zarr store holding a 4-D ``(t, nz, ny, nx)`` array or
+        an OME-Zarr image with a ``t`` axis (one step read per step, lazily as a
+        :class:`~sparsecast.storage.BrickedVolume` when a step exceeds the memory budget;
+        ``level=`` picks the OME-Zarr level).
     cache_bytes : int
         Voxel bytes of recent steps kept in memory.
     spacing, origin, **load_options
@@ -54,6 +61,10 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
         path = Path(text)
         if path.suffix.lower() == ".npy" and path.is_file():
             return _npy_series(path, spacing, origin, cache_bytes)
+        if is_zarr_dir(path):
+            return _zarr_series(path, spacing, origin, cache_bytes, **load_options)
+        if suffix_of(path) in (".nii", ".nii.gz") and path.is_file() and nifti_steps(path) is not None:
+            return _nifti_series(path, spacing, origin, cache_bytes, **load_options)
         if path.is_dir():
             files = sorted((f for f in path.iterdir() if f.is_file() and suffix_of(f) in READ_SUFFIXES),
                            key=natural_key)
@@ -93,3 +104,49 @@ def _npy_series(path: Path, spacing, origin, cache_bytes: int) -> VolumeSeries:
         origin = 0.0
     series = VolumeSeries.from_array(arr, spacing, origin, name=path.name, cache_bytes=cache_bytes)
     return series
+
+
+def _zarr_series(path: Path, spacing, origin, cache_bytes: int, *, level=None, missing_chunks: str = "auto",
+                 nonfinite: str = "raise", **rest: Any) -> VolumeSeries:
+    """A series over the ``t`` axis of a Zarr store: step ``t`` is opened on demand."""
+    from ..storage import BrickedVolume
+    from ..volume import Volume
+    from .budget import memory_limit
+
+    rest = {k: v for k, v in rest.items() if v is not None}
+    if rest:
+        raise ParameterError(f"{', '.join(sorted(rest))}: do not apply to a Zarr time series")
+    n = time_steps(path, level=level)
+
+    def step(t: int) -> Volume:
+        src = open_source(path, level=level, missing_chunks=missing_chunks, time=t)
+        sp = src.spacing if spacing is None else spacing
+        org = src.origin if origin is None else origin
+        label = f"{src.name}[t={t}]"
+        if src.array.nbytes > memory_limit():  # a step larger than the budget stays on disk
+            return BrickedVolume(src.array, sp, org, name=label, nonfinite=nonfinite)
+        return Volume(np.asarray(src.array[:, :, :]), sp, org, name=label, nonfinite=nonfinite)
+
+    return VolumeSeries([lambda t=t: step(t) for t in range(n)], [f"t={t}" for t in range(n)],
+                        cache_bytes=cache_bytes, name=path.name)
+
+
+def _nifti_series(path: Path, spacing, origin, cache_bytes: int, *, nonfinite: str = "raise",
+                  orientation=None, **rest: Any) -> VolumeSeries:
+    """A series over the fourth axis of a NIfTI image: step ``t`` is read on demand."""
+    from ..volume import Volume
+
+    rest = {k: v for k, v in rest.items() if v is not None}
+    if rest:
+        raise ParameterError(f"{', '.join(sorted(rest))}: do not apply to a NIfTI time series")
+    n = int(nifti_steps(path))
+
+    def step(t: int) -> Volume:
+        read = read_nifti(path, step=t)
+        sp = spacing if spacing is not None else (read.spacing if read.spacing is not None else 1.0)
+        org = origin if origin is not None else (read.origin if read.origin is not None else 0.0)
+        return Volume(read.data, sp, org, name=f"{path.name}[t={t}]", nonfinite=nonfinite,
+                      orientation=orientation if orientation is not None else read.orientation)
+
+    return VolumeSeries([lambda t=t: step(t) for t in range(n)], [f"t={t}" for t in range(n)],
+                        cache_bytes=cache_bytes, name=path.name)

@@ -50,7 +50,7 @@ from .names import stem_of, suffix_of
 from .nrrd import raw_payload
 from .raw import raw_layout
 
-__all__ = ["Source", "SourceRecipe", "Level", "SourceKind", "open_source", "split_hdf5_path", "is_lazy_path", "is_zarr_dir",
+__all__ = ["Source", "SourceRecipe", "Level", "SourceKind", "open_source", "time_steps", "split_hdf5_path", "is_lazy_path", "is_zarr_dir",
            "SOURCE_ATTRS"]
 
 SourceKind = Literal["zarr", "ome-zarr", "hdf5", "npy", "raw", "nrrd"]
@@ -103,6 +103,8 @@ class Source:
         Resolution levels, finest first (one for a single-resolution source).
     level : str
         The name of the level ``array`` reads.
+    steps : int
+        Time steps in the store (Zarr with ``time=``); ``array`` reads one.
     orientation : tuple of 3 str or None
         Anatomical axis codes (raw NRRD ``space``), else None.
     """
@@ -118,6 +120,8 @@ class Source:
     level: str
     orientation: tuple[str, str, str] | None = None
     _keep: Any = field(default=None, repr=False, compare=False)  # an open file the array reads
+    #: time steps of the store (``array`` reads the one ``time=`` chose); 1 without a t axis
+    steps: int = 1
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -377,6 +381,7 @@ def open_source(
     byte_order: Literal["little", "big"] = "little",
     header_offset: int = 0,
     allow_outside: bool = False,
+    time: int | None = None,
 ) -> Source:
     """Open a volume on disk lazily: nothing but headers and metadata is read.
 
@@ -397,6 +402,10 @@ def open_source(
         Raw files: the layout, as :func:`~.volumes.load_volume` takes it.
     allow_outside : bool, optional
         NRRD: follow a detached header's data file outside its folder.
+    time : int, optional
+        Zarr: the step of a time series stored as a 4-D ``(t, nz, ny, nx)`` array (or a
+        group holding one), or of an OME-Zarr image with a ``t`` axis. Default: the
+        store holds a single 3-D volume (a ``t`` axis of size 1 is fine).
 
     Returns
     -------
@@ -431,7 +440,9 @@ def open_source(
     if h5 is not None:
         return _open_hdf5(*h5)
     if p.is_dir() or suffix_of(p) == ".zarr":
-        return _open_zarr(p, level, missing_chunks)
+        return _open_zarr(p, level, missing_chunks, time)
+    if time is not None:
+        raise ParameterError(f"time: {path!r} holds one volume; time= applies to Zarr stores with a time axis")
     suffix = suffix_of(p)
     if suffix == ".npy":
         return _open_npy(p)
@@ -566,7 +577,13 @@ def _attr_geometry(attrs) -> tuple[np.ndarray, np.ndarray]:
     return spacing, origin if np.all(np.isfinite(origin)) else np.zeros(3)
 
 
-def _open_zarr(p: Path, level, missing: str) -> Source:
+def time_steps(path: str | os.PathLike, *, level: int | str | None = None) -> int:
+    """Time steps of a Zarr store: the length of the ``t`` axis of its 4-D array or of
+    its OME-Zarr image (an error naming the shape or axes when it has none)."""
+    return _open_zarr(Path(os.fspath(path)), level, "fill", time=-1).steps
+
+
+def _open_zarr(p: Path, level, missing: str, time: int | None = None) -> Source:
     import zarr
 
     where = repr(str(p))
@@ -583,15 +600,16 @@ def _open_zarr(p: Path, level, missing: str) -> Source:
     if isinstance(node, zarr.Group):
         attrs = dict(node.attrs)
         if "multiscales" in attrs or "multiscales" in attrs.get("ome", {}):
-            return _open_ome(p, node, level, missing)
+            return _open_ome(p, node, level, missing, time)
         if level is not None:
             raise ParameterError(f"level: {where} is a plain Zarr group, not an OME-Zarr multiscale image; "
                                  f"level= applies to OME-Zarr images")
-        arrays = _guard(where, lambda: [(k, a) for k, a in node.arrays() if a.ndim == 3])
+        want = 3 if time is None else 4
+        arrays = _guard(where, lambda: [(k, a) for k, a in node.arrays() if a.ndim == want])
         if len(arrays) != 1:
             listing = ", ".join(f"{k} {a.shape}" for k, a in _guard(where, lambda: list(node.arrays()))) or "none"
             raise FileFormatError(
-                f"{where}: group holds {len(arrays)} 3-D arrays; expected one, or open the array itself "
+                f"{where}: group holds {len(arrays)} {want}-D arrays; expected one, or open the array itself "
                 f"({p.name}/NAME) (arrays: {listing})"
             )
         key, node = arrays[0]
@@ -599,10 +617,26 @@ def _open_zarr(p: Path, level, missing: str) -> Source:
     elif level is not None:
         raise ParameterError(f"level: {where} is a single Zarr array; level= applies to OME-Zarr images")
     _checked_dtype(node.dtype, where)
-    shape = _three_d(node.shape, where, "the array")
     sp, org = _attr_geometry(node.attrs)
-    arr = ZarrVoxels(node, (), where, missing)
-    return Source(arr, sp, org, name, p, "zarr", arr.chunks, _single_level(name, shape, sp, org), name)
+    if time is None:
+        shape = _three_d(node.shape, where, "the array")
+        arr = ZarrVoxels(node, (), where, missing)
+        return Source(arr, sp, org, name, p, "zarr", arr.chunks, _single_level(name, shape, sp, org), name)
+    if len(node.shape) != 4:
+        raise FileFormatError(f"{where}: the array has shape {tuple(node.shape)}; expected a 4-D time series "
+                              "(t, nz, ny, nx)")
+    _three_d(node.shape[1:], where, "a step of the array")
+    levels = _single_level(name, tuple(int(n) for n in node.shape[1:]), sp, org)
+    step = _step(time, int(node.shape[0]), where)
+    arr = ZarrVoxels(node, (step,), f"{where} t={step}", missing)
+    return Source(arr, sp, org, name, p, "zarr", arr.chunks, levels, name, steps=int(node.shape[0]))
+
+
+def _step(time, n: int, where: str) -> int:
+    """``time`` checked against ``n`` steps (-1: any, the count is what is asked for)."""
+    if isinstance(time, bool) or not isinstance(time, (int, np.integer)) or not (-1 <= int(time) < n):
+        raise ParameterError(f"time: {where} has {n} time steps (0..{n - 1}); got {time!r}")
+    return max(int(time), 0)
 
 
 def _ome_transform(transforms, ndim: int) -> tuple[np.ndarray, np.ndarray]:
@@ -617,7 +651,7 @@ def _ome_transform(transforms, ndim: int) -> tuple[np.ndarray, np.ndarray]:
     return scale, shift
 
 
-def _open_ome(p: Path, group, level, missing: str) -> Source:
+def _open_ome(p: Path, group, level, missing: str, time: int | None = None) -> Source:
     from ome_zarr.io import parse_url
     from ome_zarr.reader import Multiscales, Reader
 
@@ -664,15 +698,24 @@ def _open_ome(p: Path, group, level, missing: str) -> Source:
     lv = levels[chosen]
     arr = group[lv.name]
     lead = arr.shape[:-3]
-    extra = [(a, n) for a, n in zip(axes[:-3], lead) if n != 1]
+    prefix = [0] * len(lead)
+    if time is not None:
+        if "t" not in axes[:-3]:
+            raise ParameterError(f"time: {where} has axes {axes}, no t axis; time= applies to a time series")
+        ti = axes.index("t")
+        prefix[ti] = _step(time, int(lead[ti]), where)
+    extra = [(a, n) for a, n in zip(axes[:-3], lead) if n != 1 and not (time is not None and a == "t")]
     if extra:
         raise ParameterError(
             f"{where}: axes {', '.join(f'{a} of size {n}' for a, n in extra)}; expected a single time point and "
-            f"channel (size 1) for a scalar volume"
+            f"channel (size 1) for a scalar volume" + (" (open a time series with load_series)"
+                                                        if any(a == "t" for a, _ in extra) else "")
         )
-    label = f"{str(p)!r} level {lv.name!r}"
+    label = f"{str(p)!r} level {lv.name!r}" + (f" t={prefix[axes.index('t')]}" if time is not None else "")
     _checked_dtype(arr.dtype, label)
     _three_d(arr.shape[-3:], label, "the level")
-    voxels = ZarrVoxels(arr, (0,) * len(lead), label, missing)
+    voxels = ZarrVoxels(arr, tuple(prefix), label, missing)
     name = str(meta.get("name") or stem_of(p))
-    return Source(voxels, lv.spacing, lv.origin, name, p, "ome-zarr", voxels.chunks, tuple(levels), lv.name)
+    steps = int(lead[axes.index("t")]) if "t" in axes[:-3] else 1
+    return Source(voxels, lv.spacing, lv.origin, name, p, "ome-zarr", voxels.chunks, tuple(levels), lv.name,
+                  steps=steps)
