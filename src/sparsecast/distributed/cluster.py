@@ -266,10 +266,11 @@ class ClusterVolume:
         moved = job_bytes * len(jobs)
         stats_list: list = []
         comp_ms = 0.0
-        if layer is not None:
+        if layer is not None and layer.samples.size:
             h, w = layer.samples.shape
             rgba[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.rgba
             samples[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.samples
+        if layer is not None:
             moved += layer.moved + layer.nbytes
             stats_list = layer.stats
             comp_ms = layer.composite_ms

@@ -49,6 +49,11 @@ def over(near: Layer | None, far: Layer | None) -> Layer | None:
     of their rectangles (either may be None: a piece no pixel sees)."""
     if near is None or far is None:
         return far if near is None else near
+    if near.samples.size == 0 or far.samples.size == 0:
+        # an empty layer (a piece whose rays took no sample) adds nothing but its statistics
+        keep, empty = (far, near) if near.samples.size == 0 else (near, far)
+        return Layer(keep.x0, keep.y0, keep.rgba, keep.samples, near.stats + far.stats,
+                     near.composite_ms + far.composite_ms, near.moved + far.moved + keep.nbytes + empty.nbytes)
     t0 = time.perf_counter()
     h_n, w_n = near.samples.shape
     h_f, w_f = far.samples.shape

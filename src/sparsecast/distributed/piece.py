@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import pickle
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +32,9 @@ from ..render.schedule import limit_threads
 from ..storage import BrickedVolume
 from ..volume import BrickStats
 from .composite import Layer
+
+#: TFs (with their indices) a piece keeps
+TF_CACHE = 4
 
 __all__ = ["PieceSpec", "Window", "Piece", "load_piece", "render_piece", "render_piece_after", "tf_key"]
 
@@ -93,9 +97,9 @@ class Piece:
         self.volume = volume
         self.load_ms = load_ms
         self.bytes_read = bytes_read
-        self._tf_key: str | None = None
-        self._tf = None
-        self._indices: dict = {}
+        # The TFs of the last few frames with their indices: a viewer toggling between a
+        # few TFs (or a label shown and hidden) rebuilds nothing.
+        self._tfs: OrderedDict[str, tuple] = OrderedDict()
 
     def __sizeof__(self) -> int:
         # What Dask's scheduler weighs a transfer by: a piece is its bricks, so the
@@ -104,23 +108,27 @@ class Piece:
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        state["_tf_key"], state["_tf"], state["_indices"] = None, None, {}  # rebuilt where it lands
+        state["_tfs"] = OrderedDict()  # indices are rebuilt where a moved piece lands
         return state
 
     def tf_for(self, key: str, tf):
         """The TF object to render with: the one kept from an earlier frame when ``key``
-        matches (its indices stay valid), else ``tf``, which replaces it."""
-        if key != self._tf_key:
-            self._tf_key, self._tf, self._indices = key, tf, {}
-        return self._tf
+        matches (its indices stay valid), else ``tf``, kept from now on."""
+        if key not in self._tfs:
+            self._tfs[key] = (tf, {})
+            while len(self._tfs) > TF_CACHE:
+                self._tfs.popitem(last=False)
+        self._tfs.move_to_end(key)
+        return self._tfs[key][0]
 
-    def index_for(self, tf, name: str, options: dict):
-        """This TF's index ``name`` (built once per TF: a TF change rebuilds it here)."""
+    def index_for(self, key: str, name: str, options: dict):
+        """Index ``name`` for the TF of ``key`` (built once per TF: a new TF builds here)."""
+        tf, indices = self._tfs[key]
         k = (name, tuple(sorted(options.items())))
-        if k not in self._indices:
-            self._indices[k] = build_index(self.volume, tf, name, **options)
-            return self._indices[k], True
-        return self._indices[k], False
+        if k not in indices:
+            indices[k] = build_index(self.volume, tf, name, **options)
+            return indices[k], True
+        return indices[k], False
 
 
 def tf_key(tf) -> str:
@@ -161,13 +169,13 @@ def _threads() -> None:
     limit_threads(n)
 
 
-def render_piece(piece: Piece, job: dict) -> Layer:
+def render_piece(piece: Piece, job: dict, crop: bool = True) -> Layer:
     """Render the piece's screen rectangle for one frame (``job``: see
     :meth:`~.cluster.ClusterVolume.render`); a :class:`Layer` over transparent black."""
     t0 = time.perf_counter()
     _threads()
     tf = piece.tf_for(job["tf_key"], job["tf"])
-    index, built = piece.index_for(tf, job["index"], job["index_options"])
+    index, built = piece.index_for(job["tf_key"], job["index"], job["index_options"])
     x0, y0, w, h = job["rect"]
     img = render_local(piece.volume, tf, job["camera"], job["width"], job["height"], index=index,
                        background="transparent", rect=(x0, y0, w, h), initial=job.get("initial"),
@@ -176,7 +184,19 @@ def render_piece(piece: Piece, job: dict) -> Layer:
                  build_ms=index.build_ms if built else 0.0, index=index.name, samples=img.stats["samples"],
                  samples_nonempty=img.stats["samples_nonempty"], rays=w * h,
                  wall_ms=(time.perf_counter() - t0) * 1e3)
-    return Layer(x0 - job["frame_x0"], y0 - job["frame_y0"], img.rgba, img.samples, [stats])
+    rgba, samples, dx, dy = img.rgba, img.samples, 0, 0
+    if crop and job.get("initial") is None:
+        # Pixels that took no sample are transparent black: send only the box of the others.
+        rows = np.flatnonzero(samples.any(axis=1))
+        cols = np.flatnonzero(samples.any(axis=0))
+        if rows.size == 0:
+            rgba, samples = rgba[:0, :0], samples[:0, :0]
+        else:
+            dy, dx = int(rows[0]), int(cols[0])
+            rgba = rgba[dy:rows[-1] + 1, dx:cols[-1] + 1]
+            samples = samples[dy:rows[-1] + 1, dx:cols[-1] + 1]
+    return Layer(x0 - job["frame_x0"] + dx, y0 - job["frame_y0"] + dy, np.ascontiguousarray(rgba),
+                 np.ascontiguousarray(samples), [stats])
 
 
 def render_piece_after(piece: Piece, job: dict, front: Layer) -> Layer:
@@ -184,7 +204,7 @@ def render_piece_after(piece: Piece, job: dict, front: Layer) -> Layer:
     this piece, over the whole frame) through this piece; the whole frame again."""
     fx, fy = job["rect"][0] - job["frame_x0"], job["rect"][1] - job["frame_y0"]
     w, h = job["rect"][2], job["rect"][3]
-    mine = render_piece(piece, {**job, "initial": front.rgba[fy:fy + h, fx:fx + w]})
+    mine = render_piece(piece, {**job, "initial": front.rgba[fy:fy + h, fx:fx + w]}, crop=False)
     rgba = front.rgba.copy()
     samples = front.samples.copy()
     rgba[fy:fy + h, fx:fx + w] = mine.rgba
