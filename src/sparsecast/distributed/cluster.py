@@ -4,8 +4,9 @@
 load its pieces once (:func:`.piece.load_piece`; the futures are held, so the pieces
 stay resident across frames), and renders a frame as a task graph: one
 :func:`.piece.render_piece` per piece a pixel can see, then a tree of
-:func:`.composite.over` tasks in the visibility order of the camera, the final layer
-gathered here. A TF change sends only the TF; the pieces rebuild their own indices.
+:func:`.composite.over` tasks in the visibility order of the camera, whose two top
+layers are gathered and composited here (one hop fewer than a root task). A TF change
+sends only the TF; the pieces rebuild their own indices.
 
 Faults are Dask's to handle: a worker lost mid-frame takes its pieces' data with it,
 and the scheduler recomputes the load tasks (their arguments, a source recipe or the
@@ -242,11 +243,25 @@ class ClusterVolume:
                 frame_futures.append(f)
                 return f
 
-            final = reduce(self.tree.reduction(near_low))
+            root = self.tree.reduction(near_low)
+            # The subtrees reduce on the cluster; the root's two layers come here and are
+            # composited by the client, which saves a worker-to-worker hop per frame.
+            final = [reduce(root[0]), reduce(root[1])] if isinstance(root, tuple) else [reduce(root)]
+            final = [f for f in final if f is not None]
         submit_ms = (time.perf_counter() - t_submit) * 1e3
         t_wait = time.perf_counter()
+        from distributed import wait
+
+        pending = [final] if cross_termination else final
+        pending = [f for f in pending if hasattr(f, "result")]  # no piece visible: the front layer itself
         try:
-            layer = final.result(timeout=timeout) if hasattr(final, "result") else final
+            wait(pending, timeout=timeout)
+            parts = self.client.gather(pending) if pending else ([final] if cross_termination else [])
+            # what reached the client: the root's layers (or the chain's last)
+            moved_here = sum(part.nbytes for part in parts if part is not None)
+            layer = None
+            for part in parts:  # near, then far
+                layer = part if layer is None else over(layer, part)
         except TimeoutError:
             done = sum(f.done() for f in frame_futures)
             self.client.cancel(frame_futures)
@@ -271,7 +286,7 @@ class ClusterVolume:
             rgba[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.rgba
             samples[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.samples
         if layer is not None:
-            moved += layer.moved + layer.nbytes
+            moved += sum(part.moved for part in parts if part is not None) + moved_here
             stats_list = layer.stats
             comp_ms = layer.composite_ms
         if init.shape[0] and not cross_termination:
@@ -291,7 +306,7 @@ class ClusterVolume:
             "index": sorted({s["index"] for s in stats_list}) or [index],
             "pieces": len(stats_list),
             "pieces_total": self.tree.count,
-            "workers": len(self.client.nthreads()),
+            "workers": len({st["worker"] for st in stats_list}),
             "bytes_moved": int(moved),
             "submit_ms": submit_ms,
             "wait_ms": wait_ms,

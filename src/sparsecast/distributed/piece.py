@@ -158,22 +158,23 @@ def load_piece(spec: PieceSpec) -> Piece:
     return Piece(spec, vol, (time.perf_counter() - t0) * 1e3, int(vol.loads["bytes_read"]))
 
 
-def _threads() -> None:
-    """Render with as many threads as the worker runs tasks."""
+def _threads() -> str:
+    """Render with as many threads as the worker runs tasks; the worker's address."""
     try:
         from distributed import get_worker
 
-        n = get_worker().state.nthreads
+        worker = get_worker()
     except (ImportError, ValueError, AttributeError):
-        return  # not on a worker (a test calling the function directly)
-    limit_threads(n)
+        return "here"  # not on a worker (a test calling the function directly)
+    limit_threads(worker.state.nthreads)
+    return worker.address
 
 
 def render_piece(piece: Piece, job: dict, crop: bool = True) -> Layer:
     """Render the piece's screen rectangle for one frame (``job``: see
     :meth:`~.cluster.ClusterVolume.render`); a :class:`Layer` over transparent black."""
     t0 = time.perf_counter()
-    _threads()
+    worker = _threads()
     tf = piece.tf_for(job["tf_key"], job["tf"])
     index, built = piece.index_for(job["tf_key"], job["index"], job["index_options"])
     x0, y0, w, h = job["rect"]
@@ -182,7 +183,7 @@ def render_piece(piece: Piece, job: dict, crop: bool = True) -> Layer:
                        clip_box=job["clip_box"], clip_open=job["clip_open"], **job["frame"])
     stats = dict(piece=piece.spec.number, ms=img.stats["ms"], jit_ms=img.stats["jit_ms"],
                  build_ms=index.build_ms if built else 0.0, index=index.name, samples=img.stats["samples"],
-                 samples_nonempty=img.stats["samples_nonempty"], rays=w * h,
+                 samples_nonempty=img.stats["samples_nonempty"], rays=w * h, worker=worker,
                  wall_ms=(time.perf_counter() - t0) * 1e3)
     rgba, samples, dx, dy = img.rgba, img.samples, 0, 0
     if crop and job.get("initial") is None:
