@@ -28,7 +28,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import DistributedError, ParameterError
 from ..image import Image
-from ..render.options import background_array, check_size, initial_rgba, rect_bounds
+from ..render.options import background_array, check_size, initial_rgba, rect_bounds, world_clip
 from ..storage import BrickedVolume
 from ..transfer import TransferFunction
 from ..volume import Volume
@@ -360,21 +360,10 @@ class ClusterVolume:
 
 
 def _user_clip(clip_box, clip_open):
-    if clip_box is None:
-        if clip_open is not None:
-            raise ParameterError("clip_open: applies only with clip_box")
+    checked = world_clip(clip_box, clip_open)
+    if checked is None:
         return None
-    try:
-        box = np.array(clip_box, dtype=np.float64)
-    except (TypeError, ValueError):
-        box = np.zeros(0)
-    if box.shape != (2, 3) or not np.all(np.isfinite(box)) or np.any(box[0] > box[1]):
-        raise ParameterError(
-            f"clip_box: expected ((x0, y0, z0), (x1, y1, z1)) of finite world coordinates with x0 <= x1 "
-            f"etc., got {clip_box!r}")
-    flags = np.zeros((2, 3), bool) if clip_open is None else np.asarray(clip_open)
-    if flags.shape != (2, 3) or flags.dtype != np.bool_:
-        raise ParameterError(f"clip_open: expected ((bool, bool, bool), (bool, bool, bool)), got {clip_open!r}")
+    box, flags = checked
     return (box[0], box[1]), (flags[0], flags[1])
 
 

@@ -28,7 +28,7 @@ from .frame import Frame
 from .schedule import run_tiles
 from .options import (
     DEFAULT_SHADING, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, background_array, check_size, initial_rgba,
-    rect_bounds, shading_array,
+    rect_bounds, shading_array, world_clip,
 )
 
 __all__ = ["render_local", "classification_tf", "same_emptiness", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "MAX_SAMPLES_PER_RAY", "MAX_CLIP_PLANES", "MAX_SAMPLES_PER_IMAGE",
@@ -280,25 +280,10 @@ def _clip(volume: Volume, clip_box, clip_open):
     hi = np.array([nx - 1.0, ny - 1.0, nz - 1.0])
     open_lo = np.zeros(3, np.bool_)
     open_hi = np.zeros(3, np.bool_)
-    if clip_box is None:
-        if clip_open is not None:
-            raise ParameterError("clip_open: applies only with clip_box")
+    checked = world_clip(clip_box, clip_open)
+    if checked is None:
         return lo, hi, open_lo, open_hi
-    try:
-        box = np.array(clip_box, dtype=np.float64)
-    except (TypeError, ValueError):
-        box = np.zeros(0)
-    if box.shape != (2, 3) or not np.all(np.isfinite(box)) or np.any(box[0] > box[1]):
-        raise ParameterError(
-            f"clip_box: expected ((x0, y0, z0), (x1, y1, z1)) of finite world coordinates with x0 <= x1 "
-            f"etc., got {clip_box!r}"
-        )
-    if clip_open is not None:
-        flags = np.asarray(clip_open)
-        if flags.shape != (2, 3) or flags.dtype != np.bool_:
-            raise ParameterError(f"clip_open: expected ((bool, bool, bool), (bool, bool, bool)), got {clip_open!r}")
-    else:
-        flags = np.zeros((2, 3), np.bool_)
+    box, flags = checked
     c_lo = (box[0] - volume.origin) / volume.spacing
     c_hi = (box[1] - volume.origin) / volume.spacing
     # A face of the clip box counts where it bounds the volume's box (or meets its face).

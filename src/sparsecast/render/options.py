@@ -10,7 +10,7 @@ from ..errors import ParameterError
 from ..kernels.shade import SHADING_SIZE
 
 __all__ = ["MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "DEFAULT_SHADING", "NAMED_BACKGROUNDS", "check_size",
-           "shading_array", "background_array", "rect_bounds", "initial_rgba"]
+           "shading_array", "background_array", "rect_bounds", "initial_rgba", "world_clip"]
 
 MAX_IMAGE_SIDE = 16384
 MAX_IMAGE_PIXELS = 1 << 26  # 64 Mpixel: 1 GiB of float RGBA
@@ -110,3 +110,25 @@ def initial_rgba(initial, w: int, h: int) -> np.ndarray:
     if not np.all(np.isfinite(arr)) or arr.min(initial=0.0) < 0 or arr.max(initial=0.0) > 1:
         raise ParameterError("initial: expected finite premultiplied RGBA in [0, 1]")
     return arr
+
+
+def world_clip(clip_box, clip_open) -> tuple[np.ndarray, np.ndarray] | None:
+    """``clip_box=`` and ``clip_open=`` checked: ``(box (2, 3) float64 world lower/upper
+    corners, open (2, 3) bool faces)``, or None without a clip box."""
+    if clip_box is None:
+        if clip_open is not None:
+            raise ParameterError("clip_open: applies only with clip_box")
+        return None
+    try:
+        box = np.array(clip_box, dtype=np.float64)
+    except (TypeError, ValueError):
+        box = np.zeros(0)
+    if box.shape != (2, 3) or not np.all(np.isfinite(box)) or np.any(box[0] > box[1]):
+        raise ParameterError(
+            f"clip_box: expected ((x0, y0, z0), (x1, y1, z1)) of finite world coordinates with x0 <= x1 "
+            f"etc., got {clip_box!r}"
+        )
+    flags = np.zeros((2, 3), np.bool_) if clip_open is None else np.asarray(clip_open)
+    if flags.shape != (2, 3) or flags.dtype != np.bool_:
+        raise ParameterError(f"clip_open: expected ((bool, bool, bool), (bool, bool, bool)), got {clip_open!r}")
+    return box, flags
