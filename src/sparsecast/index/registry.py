@@ -45,6 +45,8 @@ RENDER_PARAMETERS: dict[str, str] = {
     "clip_open": "render(clip_open=...)", "clip_planes": "render(clip_planes=...)", "clip_cap": "--clip-cap",
     "initial": "render(initial=...)", "rect": "render(rect=...)", "max_samples": "render(max_samples=...)",
     "iso": "--iso", "iso_colors": "render(iso_colors=...)",
+    "client": "--scheduler", "pieces": "--pieces", "cross_termination": "render(cross_termination=...)",
+    "timeout": "render(timeout=...)",
 }
 #: render() parameters that an index may take as a build option too: ``render(mode=...)``
 #: passes the BIH's build modes (``ess``, ``single-sample``, ``multi-sample``) on to it
