@@ -276,24 +276,28 @@ class ClusterVolume:
                 raise DistributedError(f"frame: a task killed its workers repeatedly: {exc}") from None
             raise
         wait_ms = (time.perf_counter() - t_wait) * 1e3
-        rgba = np.zeros((fh, fw, 4), np.float32)
-        samples = np.zeros((fh, fw), np.int32)
         moved = job_bytes * len(jobs)
         stats_list: list = []
         comp_ms = 0.0
-        if layer is not None and layer.samples.size:
-            h, w = layer.samples.shape
-            rgba[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.rgba
-            samples[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.samples
+        if layer is not None and layer.samples.shape == (fh, fw) and layer.rgba.flags.writeable:
+            rgba, samples = layer.rgba, layer.samples  # the layer is the whole frame already
+        else:
+            rgba = np.zeros((fh, fw, 4), np.float32)
+            samples = np.zeros((fh, fw), np.int32)
+            if layer is not None and layer.samples.size:
+                h, w = layer.samples.shape
+                rgba[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.rgba
+                samples[layer.y0:layer.y0 + h, layer.x0:layer.x0 + w] = layer.samples
         if layer is not None:
             moved += sum(part.moved for part in parts if part is not None) + moved_here
             stats_list = layer.stats
             comp_ms = layer.composite_ms
         if init.shape[0] and not cross_termination:
             rgba = init + (1.0 - init[..., 3:4]) * rgba
-        rest = (1.0 - rgba[..., 3:4]) * np.float32(bg[3])
-        rgba[..., :3] += rest * bg[:3].astype(np.float32)
-        rgba[..., 3:4] += rest
+        if bg[3] > 0:  # over the background, as the driver writes a pixel
+            rest = (1.0 - rgba[..., 3:4]) * np.float32(bg[3])
+            rgba[..., :3] += rest * bg[:3].astype(np.float32)
+            rgba[..., 3:4] += rest
         piece_ms = [s["ms"] for s in stats_list]
         n_samples = int(samples.sum(dtype=np.int64))
         ms = (time.perf_counter() - t_start) * 1e3
