@@ -133,6 +133,8 @@ BAD = [
     ({"type": "render", "index": {"name": "grid-pc", "cell": "8"}}, "index.cell"),
     ({"type": "render", "index": {"cell": 8}}, "index.name"),
     ({"type": "render", "index": "grid-pc"}, "index"),
+    ({"type": "render", "clip": {"box": [[0, 0, 0], [1, 1, 1]], "cap": "yes"}}, "clip.cap"),
+    ({"type": "render", "clip": {"cap": 1}}, "clip.cap"),
 ]
 
 

@@ -186,3 +186,40 @@ def test_the_viewer_opens_a_lazy_volume(blobs, tmp_path):
         _, got = frame(lazy_s, **kw)
         np.testing.assert_allclose(got, want, atol=ATOL)
     assert 0 < lazy.resident_bricks <= lazy.stored_bricks  # the frames paged bricks in
+
+
+def test_cap_the_cut_equals_render_with_clip_cap_and_only_with_a_cut(blobs):
+    data = ViewerData.create(blobs, "viridis", index="kdtree-deep")
+    s = Session(data)
+    # cut through the brightest voxel, so that the cut face shows something to cap
+    k, j, i = np.unravel_index(np.argmax(blobs.data), blobs.shape)
+    clip = ClipSpec(((i / (blobs.shape[2] - 1), 0.0, 0.0), (1.0, 1.0, 1.0)))
+    _, plain = frame(s, clip=clip)
+    st, capped = frame(s, clip=ClipSpec(clip.box, (), cap=True))
+    assert not st["rebuilt"]  # capping changes no emptiness
+    lo, hi = blobs.bounds
+    box = (lo + np.array(clip.box[0]) * (hi - lo), hi)
+    ref = sc.render(blobs, tf_from_spec(data.tf), camera(blobs, s), W, H, background="black", clip_box=box,
+                    clip_cap=True)
+    np.testing.assert_allclose(capped, ref.rgba, atol=ATOL)
+    assert np.abs(capped - plain).max() > 0.01
+    # cap on, nothing cut: the unclipped frame
+    _, whole = frame(s, clip=ClipSpec(cap=True))
+    np.testing.assert_allclose(whole, sc.render(blobs, tf_from_spec(data.tf), camera(blobs, s), W, H,
+                                                background="black").rgba, atol=ATOL)
+
+
+def test_smooth_label_boundaries_toggle_equals_render_of_the_smoothed_tf(segmentation):
+    tf = sc.TransferFunction.labels([1, 2, 5])
+    data = ViewerData.create(segmentation, tf, index="kdtree-deep")
+    assert data.hello()["labels"]["smooth"] is False
+    s = Session(data)
+    _, nearest = frame(s)
+    _, smooth = frame(s, labels=LabelSpec(smooth=True))
+    ref = sc.render(segmentation, tf.smoothed(), camera(segmentation, s), W, H, background="black")
+    np.testing.assert_allclose(smooth, ref.rgba, atol=ATOL)
+    assert np.abs(smooth - nearest).max() > 0.01
+    _, again = frame(s, labels=LabelSpec(visible=(1, 2, 5)))  # other label edits keep it smooth
+    np.testing.assert_allclose(again, smooth, atol=ATOL)
+    _, back = frame(s, labels=LabelSpec(smooth=False))
+    np.testing.assert_allclose(back, nearest, atol=ATOL)

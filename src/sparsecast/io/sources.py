@@ -607,7 +607,8 @@ def _open_zarr(p: Path, level, missing: str, time: int | None = None) -> Source:
         want = 3 if time is None else 4
         arrays = _guard(where, lambda: [(k, a) for k, a in node.arrays() if a.ndim == want])
         if len(arrays) != 1:
-            listing = ", ".join(f"{k} {a.shape}" for k, a in _guard(where, lambda: list(node.arrays()))) or "none"
+            listing = ", ".join(f"{k} {a.shape}" for k, a in sorted(_guard(where, lambda: list(node.arrays())),
+                                                                      key=lambda ka: ka[0])) or "none"
             raise FileFormatError(
                 f"{where}: group holds {len(arrays)} {want}-D arrays; expected one, or open the array itself "
                 f"({p.name}/NAME) (arrays: {listing})"

@@ -93,8 +93,8 @@ MAX_ABS_NORMAL = 1e6
 
 _TOP_KEYS = {"type", "seq", "camera", "tf", "index", "width", "height", "preview", "format",
              "mode", "iso", "clip", "labels", "time"}
-_CLIP_KEYS = {"box", "planes"}
-_LABEL_KEYS = {"visible", "colors"}
+_CLIP_KEYS = {"box", "planes", "cap"}
+_LABEL_KEYS = {"visible", "colors", "smooth"}
 _CAMERA_KEYS = {"azimuth", "elevation", "zoom", "pan"}
 _CAMERA_REQUIRED = ("azimuth", "elevation", "zoom")
 PAN_LIMIT = 5.0  # bounding-sphere radii
@@ -132,7 +132,7 @@ class IndexSpec:
 
 @dataclass(frozen=True)
 class ClipSpec:
-    """Clip box and planes in fractions of the volume's box (hashable).
+    """Clip box and planes in fractions of the volume's box, and capping (hashable).
 
     ``box`` is ``((x0, y0, z0), (x1, y1, z1))`` with ``0 <= lo <= hi <= 1`` per axis;
     each plane is ``(px, py, pz, nx, ny, nz)``: a point in box fractions and a
@@ -141,6 +141,8 @@ class ClipSpec:
 
     box: tuple[tuple[float, float, float], tuple[float, float, float]] = ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
     planes: tuple[tuple[float, float, float, float, float, float], ...] = ()
+    #: shade the cut faces with their normals (``render(clip_cap=True)``; DVR only)
+    cap: bool = False
 
     @property
     def is_full(self) -> bool:
@@ -153,11 +155,13 @@ FULL_CLIP = ClipSpec()
 
 @dataclass(frozen=True)
 class LabelSpec:
-    """A label-table edit: ``visible`` ids (``None``: unchanged) and colour overrides
-    ``(id, r, g, b, a)``."""
+    """A label-table edit: ``visible`` ids (``None``: unchanged), colour overrides
+    ``(id, r, g, b, a)`` and smooth boundaries on or off."""
 
     visible: tuple[int, ...] | None = None
     colors: tuple[tuple[int, float, float, float, float], ...] = ()
+    #: smooth boundaries from interpolated per-label masks (``None``: unchanged)
+    smooth: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -327,7 +331,10 @@ def parse_clip(value: Any) -> ClipSpec:
         if not any(normal):
             raise _fail(f"clip.planes[{i}]: expected a non-zero normal, got [0, 0, 0]")
         planes.append((*point, *normal))
-    return ClipSpec(box, tuple(planes))  # type: ignore[arg-type]
+    cap = d.get("cap", False)
+    if not isinstance(cap, bool):
+        raise _fail(f"clip.cap: expected true or false, got {cap!r}")
+    return ClipSpec(box, tuple(planes), cap)  # type: ignore[arg-type]
 
 
 def _label_id(value: Any, name: str, known: frozenset[int]) -> int:
@@ -353,7 +360,10 @@ def parse_labels(value: Any, label_ids: Iterable[int] | None) -> LabelSpec:
             raise _fail(f"labels.colors[{i}]: expected [id, r, g, b, a]")
         colors.append((_label_id(c[0], f"labels.colors[{i}][0]", known),
                        *(_number(v, f"labels.colors[{i}][{j + 1}]", 0.0, 1.0) for j, v in enumerate(c[1:]))))
-    return LabelSpec(visible, tuple(colors))  # type: ignore[arg-type]
+    smooth = d.get("smooth")
+    if smooth is not None and not isinstance(smooth, bool):
+        raise _fail(f"labels.smooth: expected true or false, got {smooth!r}")
+    return LabelSpec(visible, tuple(colors), smooth)  # type: ignore[arg-type]
 
 
 def parse_time(value: Any, steps: int) -> int:

@@ -295,7 +295,8 @@ class ViewerData:
             # A label volume: the page's label table (ids ascending, parallel lists).
             "labels": None if lt is None else {
                 "ids": list(lt.ids), "counts": list(lt.counts),
-                "colors": [list(lt.colors[i]) for i in lt.ids], "visible": list(lt.visible)},
+                "colors": [list(lt.colors[i]) for i in lt.ids], "visible": list(lt.visible),
+                "smooth": bool(lt.tf.smooth)},
             # A time series: the page's time slider.
             "series": None if self.series is None else {"steps": len(self.series), "names": list(self.series.names)},
             "modes": list(MODES) if lt is None else ["dvr"],
@@ -317,7 +318,7 @@ class ViewerData:
                 "mode": self.mode,
                 "iso": list(self.iso or ()),
                 "clip": {"box": [list(self.clip.box[0]), list(self.clip.box[1])],
-                         "planes": [list(p) for p in self.clip.planes]},
+                         "planes": [list(p) for p in self.clip.planes], "cap": self.clip.cap},
                 "time": self.time,
             },
         }
@@ -343,11 +344,13 @@ class Snapshot:
     clip: ClipSpec = FULL_CLIP
     labels: tuple[LabelEntry, ...] | None = None
     time: int = 0
+    #: label volumes: smooth boundaries (interpolated per-label masks) instead of nearest voxels
+    smooth: bool = False
 
     @property
     def tf_key(self) -> tuple:
-        """What the colours come from: the TF spec, or the visible labels."""
-        return ("labels", self.labels) if self.tf is None else ("tf", self.tf)
+        """What the colours come from: the TF spec, or the visible labels (and smoothing)."""
+        return ("labels", self.labels, self.smooth) if self.tf is None else ("tf", self.tf)
 
     @property
     def classification(self) -> tuple:
@@ -375,6 +378,7 @@ class Session:
         lt = data.labels
         self.label_visible: tuple[int, ...] = () if lt is None else lt.visible
         self.label_colors: dict[int, tuple] = {} if lt is None else dict(lt.colors)
+        self.label_smooth = False if lt is None else bool(lt.tf.smooth)
         self.width: int | None = None
         self.height: int | None = None
         self._tfs: OrderedDict[tuple, TransferFunction] = OrderedDict()
@@ -398,13 +402,15 @@ class Session:
         lt = self.data.labels
         labels = None if lt is None else lt.entries(self.label_visible, self.label_colors)
         return Snapshot(self.camera, self.tf, self.index, w, h, req.preview, req.format, req.seq,
-                        self.mode, self.iso, self.clip, labels, self.time)
+                        self.mode, self.iso, self.clip, labels, self.time, lt is not None and self.label_smooth)
 
     def _apply_labels(self, spec: LabelSpec) -> None:
         for i, *rgba in spec.colors:
             self.label_colors[i] = tuple(rgba)
         if spec.visible is not None:
             self.label_visible = spec.visible
+        if spec.smooth is not None:
+            self.label_smooth = spec.smooth
 
     # -- worker-thread side --------------------------------------------------
     def _tf(self, s: Snapshot) -> TransferFunction:
@@ -412,6 +418,8 @@ class Session:
         tf = self._tfs.get(key)
         if tf is None:
             tf = tf_from_spec(s.tf) if s.tf is not None else self.data.labels.tf_for(s.labels)  # type: ignore[union-attr]
+            if s.tf is None:
+                tf = tf.smoothed(s.smooth)
             self._tfs[key] = tf
             while len(self._tfs) > _INDEX_CACHE:
                 self._tfs.popitem(last=False)
@@ -450,6 +458,8 @@ class Session:
         kw: dict[str, Any] = dict(dt=self.data.dt, background="black", **clip_world(volume, s.clip))
         if s.mode != "dvr":
             kw.update(mode=s.mode, iso=list(s.iso))
+        elif s.clip.cap and not s.clip.is_full:
+            kw.update(clip_cap=True)  # caps are a DVR feature; the iso modes have surfaces already
         return kw
 
     def render_frame(self, s: Snapshot) -> tuple[bytes, dict[str, Any]]:
@@ -465,7 +475,7 @@ class Session:
             ispec = IndexSpec(name, None)
         if not s.preview:
             self._settled = s.classification
-        if self.data.client is not None and s.mode == "dvr":
+        if self.data.client is not None and s.mode == "dvr" and not self._render_kw(s, volume).get("clip_cap"):
             # The pieces on the cluster keep and rebuild their own indices.
             img = render(volume, tf, self._camera(s.camera, volume), s.width, s.height, index=ispec.name,
                          client=self.data.client, pieces=self.data.pieces, **self._render_kw(s, volume))

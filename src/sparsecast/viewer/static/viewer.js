@@ -82,7 +82,8 @@
                            value_range: h.state.tf.value_range.slice() } : null;
     st.index = Object.assign({}, h.state.index);
     st.mode = h.state.mode; st.iso = h.state.iso.slice(); st.time = h.state.time;
-    st.clip = { box: h.state.clip.box.map((c) => c.slice()), planes: h.state.clip.planes.map((p) => p.slice()) };
+    st.clip = { box: h.state.clip.box.map((c) => c.slice()), planes: h.state.clip.planes.map((p) => p.slice()),
+                cap: Boolean(h.state.clip.cap) };
     $("tf-box").hidden = !st.tf;
     $("volume-name").textContent = `${h.volume.name} ${h.volume.dims.join("x")} ${h.volume.dtype}`;
     const cm = $("colormap"); cm.innerHTML = "";
@@ -121,6 +122,7 @@
       $(`clip-${a}-lo`).value = String(Math.round(st.clip.box[0][j] * ui.SLIDER_STEPS));
       $(`clip-${a}-hi`).value = String(Math.round(st.clip.box[1][j] * ui.SLIDER_STEPS));
     });
+    $("clip-cap").checked = Boolean(st.clip.cap);
     if (st.hello.series) {
       $("time").value = String(st.time);
       $("time-value").textContent = `${st.time} / ${st.hello.series.steps - 1}  ${st.hello.series.names[st.time]}`;
@@ -155,7 +157,8 @@
     if (st.hello.series) msg.time = st.time;
     if (st.hello.labels) {
       // Only the colours the user changed travel: a table of thousands of ids would not fit a message.
-      msg.labels = { visible: [...st.labelVisible], colors: [...st.labelColors].map(([i, c]) => [i, ...c]) };
+      msg.labels = { visible: [...st.labelVisible], colors: [...st.labelColors].map(([i, c]) => [i, ...c]),
+                     smooth: st.labelSmooth };
     }
     st.sendAll = false;
     st.ws.send(JSON.stringify(msg));
@@ -369,8 +372,9 @@
       });
     }
   });
+  $("clip-cap").addEventListener("change", () => { st.clip.cap = $("clip-cap").checked; request(false); });
   $("clip-reset").addEventListener("click", () => {
-    st.clip = { box: [[0, 0, 0], [1, 1, 1]], planes: [] }; syncInputs(); request(false);
+    st.clip = { box: [[0, 0, 0], [1, 1, 1]], planes: [], cap: st.clip.cap }; syncInputs(); request(false);
   });
 
   // --- time ---------------------------------------------------------------------------------
@@ -384,6 +388,7 @@
     const body = $("label-table").tBodies[0]; body.innerHTML = "";
     if (!labels) return;
     st.labelVisible = new Set(labels.visible);
+    st.labelSmooth = Boolean(labels.smooth); $("labels-smooth").checked = st.labelSmooth;
     labels.ids.forEach((id, k) => {
       const tr = body.insertRow();
       const box = document.createElement("input");
@@ -409,6 +414,7 @@
     for (const b of $("label-table").querySelectorAll("input[type=checkbox]")) b.checked = on;
     request(false);
   }
+  $("labels-smooth").addEventListener("change", () => { st.labelSmooth = $("labels-smooth").checked; request(false); });
   $("labels-all").addEventListener("click", () => setAllLabels(true));
   $("labels-none").addEventListener("click", () => setAllLabels(false));
 
