@@ -286,3 +286,22 @@ def test_pieces_kept_for_a_volume_go_when_the_volume_goes(client):
     del vol
     gc.collect()
     assert ref() is None
+
+
+def test_a_bricked_volume_without_a_file_ships_its_windows_and_equals_one_process(client, blobs):
+    vol = sc.BrickedVolume(blobs.data)  # eager: the pool holds everything, no source, no recipe
+    tf = sc.TransferFunction.preset("viridis", blobs.value_range, threshold=0.1)
+    cam = sc.Camera.orbit(vol, 120, -25)
+    ref = sc.render(blobs, tf, cam, 32, 32, ert=1.0, shading=True)
+    img = sc.render(vol, tf, cam, 32, 32, ert=1.0, shading=True, client=client, pieces=3)
+    assert img.stats["pieces"] == 3 and np.abs(img.rgba - ref.rgba).max() <= TOL
+
+
+@pytest.mark.parametrize("name", ["headsq_ct_64x64x93_uint16.nrrd", "tooth_103x94x161_uint8.nrrd"])
+def test_real_ct_volumes_on_the_cluster_equal_one_process(client, shared_file, name):
+    vol = sc.load_volume(shared_file(name))  # anisotropic spacing from the header
+    lo, hi = vol.value_range
+    tf = sc.TransferFunction.preset("bone", (lo, hi), threshold=0.25)
+    for cam in (sc.Camera.orbit(vol, 35, 15), sc.Camera.orbit(vol, 0, 0, projection="orthographic")):
+        _same(vol, tf, cam, client, w=48, h=40, ert=1.0, pieces=3, index="kdtree-deep", shading=True)
+        _same(vol, tf, cam, client, w=48, h=40, ert=0.95, pieces=3, index="grid-pc", cross_termination=True)

@@ -259,3 +259,18 @@ def test_property_bricked_equals_dense(data, index):
     vol, tf, cam, B, dt, shading = data
     bricked = sc.BrickedVolume(ChunkedArray(vol.data, (7, 16, 9)), vol.spacing, brick_size=B)
     _same(vol, bricked, tf, cam, 12, 10, index=index, dt=dt, shading=shading)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_read_window_equals_the_dense_window_from_bricks_or_from_the_source(seed, lazy):
+    rng = np.random.default_rng(seed)
+    shape = tuple(int(n) for n in rng.integers(9, 30, 3))
+    a = (rng.random(shape) * (rng.random(shape) < 0.3)).astype(np.float32)
+    vol = sc.BrickedVolume(a, eager=not lazy)  # eager: the pool alone; lazy: the source
+    lo = [int(rng.integers(-2, n)) for n in shape]
+    hi = [int(rng.integers(l, n + 3)) for l, n in zip(lo, shape)]
+    got = vol.read_window(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
+    c = [slice(max(l, 0), min(h, n)) for l, h, n in zip(lo, hi, shape)]
+    np.testing.assert_array_equal(got, a[tuple(c)])
+    np.testing.assert_array_equal(vol.to_dense(), a)

@@ -119,9 +119,12 @@ class ClusterVolume:
         occupied = ~((stats.vmin == background) & (stats.vmax == background))
         self.tree: PieceTree = decompose(occupied, n, B)
         recipe = volume.source_recipe
-        dense = None
+        # Voxels to ship when the workers cannot open the file themselves: windows of the
+        # dense array, or read from a bricked volume one window at a time.
+        read = None
         if recipe is None:
-            dense = volume.to_dense() if bricked else volume.data
+            read = volume.read_window if bricked else (
+                lambda z0, z1, y0, y1, x0, x1: volume.data[z0:z1, y0:y1, x0:x1])
         nz, ny, nx = volume.shape
         self._token = uuid.uuid4().hex[:12]
         workers = _assign(self.tree.weights, threads)
@@ -130,18 +133,18 @@ class ClusterVolume:
         for p in range(self.tree.count):
             (bx0, by0, bz0), (bx1, by1, bz1) = (tuple(int(v) for v in r) for r in self.tree.boxes[p])
             window = None
-            if dense is not None:
+            if read is not None:
                 # the piece's cells and the one-voxel apron of its bricks: its ghost voxels
                 lo = [max(b * B - 1, 0) for b in (bz0, by0, bx0)]
                 hi = [min(b * B + 1, m - 1) + 1 for b, m in ((bz1, nz), (by1, ny), (bx1, nx))]
-                block = np.ascontiguousarray(dense[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]])
+                block = np.ascontiguousarray(read(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
                 window = Window(block, tuple(lo), volume.shape)
             spec = PieceSpec(
                 number=p, box=((bx0, by0, bz0), (bx1, by1, bz1)), shape=volume.shape,
                 spacing=tuple(float(s) for s in volume.spacing), origin=tuple(float(o) for o in volume.origin),
                 name=volume.name, brick_size=B, background=background,
                 # shipped voxels were checked (or replaced) here already
-                nonfinite="replace" if dense is not None else getattr(volume, "nonfinite", "raise"),
+                nonfinite="replace" if read is not None else getattr(volume, "nonfinite", "raise"),
                 value_range=tuple(float(v) for v in volume.value_range),
                 vmin=np.ascontiguousarray(stats.vmin[bz0:bz1, by0:by1, bx0:bx1]),
                 vmax=np.ascontiguousarray(stats.vmax[bz0:bz1, by0:by1, bx0:bx1]),

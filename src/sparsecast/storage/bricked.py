@@ -344,22 +344,38 @@ class BrickedVolume(Volume):
 
     def to_dense(self) -> np.ndarray:
         """The dense ``(nz, ny, nx)`` array (reads every stored brick that is not resident)."""
-        out = np.full(self._shape, self.background, self._dtype)
-        B = self.brick_size
         nz, ny, nx = self._shape
+        return self.read_window(0, nz, 0, ny, 0, nx)
+
+    def read_window(self, z0: int, z1: int, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        """Voxels ``[z0, z1) x [y0, y1) x [x0, x1)`` as a new array (from the source when
+        there is one, else from the stored bricks; absent bricks read as the background).
+        A piece of a volume on a cluster is cut with it, without the whole dense array."""
+        nz, ny, nx = self._shape
+        z0, y0, x0 = max(int(z0), 0), max(int(y0), 0), max(int(x0), 0)
+        z1, y1, x1 = min(int(z1), nz), min(int(y1), ny), min(int(x1), nx)
+        out = np.full((max(z1 - z0, 0), max(y1 - y0, 0), max(x1 - x0, 0)), self.background, self._dtype)
+        if out.size == 0:
+            return out
+        B = self.brick_size
         nbz, nby, nbx = self._grid
         if self._source is not None:
-            for z0 in range(0, nz, max(1, _SLAB_VOXELS // (ny * nx))):
-                z1 = min(nz, z0 + max(1, _SLAB_VOXELS // (ny * nx)))
-                out[z0:z1] = self._read(z0, z1, 0, ny, 0, nx)
+            step = max(1, _SLAB_VOXELS // ((y1 - y0) * (x1 - x0)))
+            for z in range(z0, z1, step):
+                out[z - z0:min(z1, z + step) - z0] = self._read(z, min(z1, z + step), y0, y1, x0, x1)
             return out
+        # Brick b holds voxels b*B .. b*B + B in its slot (from offset 1: the apron before them).
         for b in self._stored_ids:
             bz, rem = divmod(int(b), nby * nbx)
             by, bx = divmod(rem, nbx)
+            lo = [max(c * B, w0) for c, w0 in ((bz, z0), (by, y0), (bx, x0))]
+            hi = [min(c * B + B, n - 1, w1 - 1) for c, n, w1 in ((bz, nz, z1), (by, ny, y1), (bx, nx, x1))]
+            if any(a > h for a, h in zip(lo, hi)):
+                continue
             block = self._pool[self._pages[b]]
-            z0, y0, x0 = bz * B, by * B, bx * B
-            z1, y1, x1 = min(z0 + B, nz - 1), min(y0 + B, ny - 1), min(x0 + B, nx - 1)
-            out[z0:z1 + 1, y0:y1 + 1, x0:x1 + 1] = block[1:z1 - z0 + 2, 1:y1 - y0 + 2, 1:x1 - x0 + 2]
+            out[lo[0] - z0:hi[0] - z0 + 1, lo[1] - y0:hi[1] - y0 + 1, lo[2] - x0:hi[2] - x0 + 1] = block[
+                lo[0] - bz * B + 1:hi[0] - bz * B + 2, lo[1] - by * B + 1:hi[1] - by * B + 2,
+                lo[2] - bx * B + 1:hi[2] - bx * B + 2]
         return out
 
     # -- statistics -----------------------------------------------------------
