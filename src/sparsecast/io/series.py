@@ -78,8 +78,8 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
             if not files:
                 raise FileFormatError(f"{text!r}: the pattern matches no files; expected one file per time step")
         else:
-            raise FileFormatError(f"{text!r}: expected a directory, a glob pattern, a list of files or a 4-D "
-                                  ".npy for a time series")
+            raise FileFormatError(f"{text!r}: expected a directory, a glob pattern, a list of files, a 4-D "
+                                  ".npy or NIfTI file, or a Zarr store with a time axis, for a time series")
     kw = dict(load_options)
     if spacing is not None:
         kw["spacing"] = spacing
