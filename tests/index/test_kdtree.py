@@ -89,17 +89,44 @@ def blobs():
 def test_leaves_disjoint_and_cover(blobs, name, threshold):
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=threshold)
     idx = sc.build_index(blobs, tf, name)
-    assert np.array_equal(idx.cells.occ, brute_occupancy(blobs, tf))
+    # The hybrids' grids keep the one-voxel apron; the k-d trees classify a cell by
+    # its own corners and grow their boxes instead (kdtree/build.py, "Exactness").
+    assert idx.apron == name.startswith("hybrid")
+    if idx.apron:
+        assert np.array_equal(idx.cells.occ, brute_occupancy(blobs, tf))
+        # every cell with a non-empty corner range is occupied together with its neighbours
+        core = corner_occupancy(blobs, tf)
+        grown = np.pad(core, 1)
+        dil = np.zeros_like(core)
+        for dz in range(3):
+            for dy in range(3):
+                for dx in range(3):
+                    dil |= grown[dz:dz + core.shape[0], dy:dy + core.shape[1], dx:dx + core.shape[2]]
+        assert not np.any(dil & ~idx.cells.occ.astype(bool))
+    else:
+        assert np.array_equal(idx.cells.occ, corner_occupancy(blobs, tf).astype(np.uint8))
+        assert idx.cells.n_occupied < brute_occupancy(blobs, tf).sum()  # the apron is not free
     check_tree(idx)
-    # every cell with a non-empty corner range is occupied together with its neighbours
-    core = corner_occupancy(blobs, tf)
-    grown = np.pad(core, 1)
-    dil = np.zeros_like(core)
-    for dz in range(3):
-        for dy in range(3):
-            for dx in range(3):
-                dil |= grown[dz:dz + core.shape[0], dy:dy + core.shape[1], dx:dx + core.shape[2]]
-    assert not np.any(dil & ~idx.cells.occ.astype(bool))
+
+
+@pytest.mark.parametrize("name", ["kdtree-shallow", "kdtree-deep"])
+def test_apron_option_classifies_with_the_apron(blobs, name):
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
+    idx = sc.build_index(blobs, tf, name, apron=True)
+    assert idx.apron and np.array_equal(idx.cells.occ, brute_occupancy(blobs, tf))
+    check_tree(idx)
+
+
+def test_boxes_are_grown_by_the_margin(blobs):
+    """Traversal boxes are the leaves' cell boxes grown by BOX_MARGIN on every side."""
+    from sparsecast.index.kdtree.build import BOX_MARGIN
+
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
+    idx = sc.build_index(blobs, tf, "kdtree-deep")
+    top = np.array(blobs.shape[::-1], np.float64) - 1
+    cells = leaf_boxes(idx).astype(np.float64)
+    assert np.array_equal(idx.leaf_lo, np.minimum(cells[:, :3], top) - BOX_MARGIN)
+    assert np.array_equal(idx.leaf_hi, np.minimum(cells[:, 3:], top) + BOX_MARGIN)
 
 
 def test_non_monotonic_tf_classification():
@@ -198,7 +225,10 @@ def test_all_full(blobs, name):
     assert idx.n_nodes == 1 and idx.n_leaves == 1
     nz, ny, nx = blobs.shape
     assert list(idx.node_box[0]) == [0, 0, 0, nx - 1, ny - 1, nz - 1]
-    assert np.array_equal(idx.leaf_hi[0], [nx - 1, ny - 1, nz - 1])
+    from sparsecast.index.kdtree.build import BOX_MARGIN
+
+    assert np.array_equal(idx.leaf_hi[0], np.array([nx - 1, ny - 1, nz - 1], np.float64) + BOX_MARGIN)
+    assert np.array_equal(idx.leaf_lo[0], np.zeros(3) - BOX_MARGIN)
 
 
 @pytest.mark.parametrize("shape", [(1, 1, 1), (1, 5, 7), (3, 1, 40), (2, 2, 2)])

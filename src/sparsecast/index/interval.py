@@ -9,6 +9,13 @@ processes; a closure factory would recompile in every new process):
 
 ``make_scratch(record)``
     Per-tile scratch (a stack, a leaf box ...), allocated once per 8x8 tile.
+``start_tile(record, scratch, corners)``
+    Begin an 8x8 tile (optional: records whose class sets ``TILE = True``).
+    ``corners`` holds the index-space rays ``(ox, oy, oz, dx, dy, dz)`` of the
+    tile's four corner pixels, ``(x0, y0), (x1, y0), (x1, y1), (x0, y1)``; every
+    ray of the tile lies in their convex hull (ray generation is affine in the
+    pixel), so an index may cull its structure once for the tile's frustum and
+    keep what is left in ``scratch`` (the deep k-d tree's leaf list).
 ``start_ray(record, scratch, ray, t_lo, t_hi) -> state``
     Begin a ray. ``ray`` is the index-space ``(ox, oy, oz, dx, dy, dz)``, the
     parameter ``t`` a world-space distance; ``[t_lo, t_hi]`` (``t_lo >= 0``) is
@@ -37,7 +44,7 @@ processes; a closure factory would recompile in every new process):
     :func:`sparsecast.kernels.iso.iso_interval` for the iso modes); approximate indices (the
     BIH's single- and multi-sample modes) overload it for their record.
 
-A record class may set two class attributes (read at compile time):
+A record class may set three class attributes (read at compile time):
 
 ``LATTICE = True``
     Intervals are marched on the global lattice with :func:`march_interval` and
@@ -45,6 +52,8 @@ A record class may set two class attributes (read at compile time):
     each interval goes to the record's own ``integrate``, unmerged.
 ``SCRATCH = False``
     The record needs no scratch; a 1-element dummy array is passed.
+``TILE = False``
+    The record overloads ``start_tile``; otherwise the driver's call is a no-op.
 
 Adding an exact index is one package with a record class, overloads of
 ``start_ray`` and ``next_interval`` (and ``make_scratch`` if ``SCRATCH``), and a
@@ -59,12 +68,17 @@ from numba.extending import overload
 from ..kernels.iso import Iso, IsoDvr, iso_interval
 from ..kernels.march import Dvr, march_interval
 
-__all__ = ["make_scratch", "start_ray", "next_interval", "integrate", "coalesces", "record_class"]
+__all__ = ["make_scratch", "start_tile", "start_ray", "next_interval", "integrate", "coalesces", "record_class"]
 
 
 def make_scratch(record):  # pragma: no cover - replaced by overloads in jitted code
     """Per-tile scratch of ``record`` (see the module docstring)."""
     raise NotImplementedError("make_scratch is only callable from jitted code")
+
+
+def start_tile(record, scratch, corners):  # pragma: no cover
+    """Per-tile set-up of ``record`` (see the module docstring)."""
+    raise NotImplementedError("start_tile is only callable from jitted code")
 
 
 def start_ray(record, scratch, ray, t_lo, t_hi):  # pragma: no cover
@@ -114,6 +128,14 @@ def _coalesces(record):
     if _lattice(record):
         return lambda record: True
     return lambda record: False
+
+
+@overload(start_tile, inline="always")
+def _no_tile(record, scratch, corners):
+    cls = record_class(record)
+    if cls is None or getattr(cls, "TILE", False):
+        return None
+    return lambda record, scratch, corners: None
 
 
 @overload(make_scratch, inline="always")

@@ -57,6 +57,8 @@ class HybridPreclassified(ShallowKdTree):
     """
 
     name = "hybrid-pc"
+    #: the grid's cell boundaries are not grown, so the occupancy keeps the apron
+    apron = True
 
     def __init__(self, volume, tf, **options) -> None:
         super().__init__(volume, tf, **options)
@@ -88,6 +90,8 @@ class HybridMinMax(ShallowKdTree):
     """
 
     name = "hybrid-mm"
+    #: the grid's cell boundaries are not grown, so the occupancy keeps the apron
+    apron = True
 
     def __init__(self, volume, tf, **options) -> None:
         super().__init__(volume, tf, **options)

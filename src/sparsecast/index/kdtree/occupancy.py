@@ -7,11 +7,13 @@ Cells
 Cell ``(cz, cy, cx)`` is the unit cube between voxels ``c`` and ``c + 1`` on each
 axis (index space), clipped to the domain; an axis of ``n`` voxels has
 ``max(n - 1, 1)`` cells. A cell is *occupied* when the TF opacity is non-zero for
-some value in ``[min, max]`` of the voxels ``c - 1 .. c + 2`` on each axis: its own
-eight corners plus the one-voxel apron (docs/architecture.md, "Emptiness"). Every cell whose
-own corner range is non-empty is therefore occupied together with its 26
-neighbours, so a lattice sample that rounding puts an ulp outside its cell is
-still inside the occupied set.
+some value in ``[min, max]`` of its own eight corners, the voxels ``c .. c + 1`` on
+each axis (``apron=0``; the k-d trees, which grow their boxes instead, see
+:mod:`.build`), or of the voxels ``c - 1 .. c + 2`` (``apron=1``: the one-voxel apron of
+docs/architecture.md, "Emptiness", which the hybrids' grids keep: every cell whose own
+corner range is non-empty is then occupied together with its 26 neighbours, so a
+lattice sample that rounding puts an ulp outside its cell is still inside the
+occupied set).
 
 Partial SVTs
 ------------
@@ -46,7 +48,7 @@ CLASSIFY_BRICK = 8
 
 # --------------------------------------------------------------------------- classify
 @njit(cache=True, parallel=True)
-def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, occ):
+def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, apron, occ):
     """Write the occupancy of every cell (see the module docstring) into ``occ``.
 
     ``bricks`` lists the flat numbers of the 8^3 bricks (``CLASSIFY_BRICK``) that
@@ -54,7 +56,8 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
     non-empty: brick ``b`` covers cells ``8b .. 8b+7`` whose apron windows
     ``c-1 .. c+2`` all lie in the brick's apron window ``8b-1 .. 8b+9``, so an
     empty brick has only empty cells and its voxels are never read. ``occ`` must
-    be zero on entry; ``occ[i]`` (8, 8, 8) receives the cells of brick
+    be zero on entry; ``apron`` (0 or 1) widens each cell's window by that many
+    voxels on every side; ``occ[i]`` (8, 8, 8) receives the cells of brick
     ``bricks[i]`` (cells outside the volume stay 0). ``bvmin/bvmax[i]`` is that
     brick's apron range: when every TF entry it spans is opaque, every cell (whose
     range lies inside) is occupied and no voxel is read. Otherwise each cell's range is reduced axis by axis (x, y, z) over its
@@ -92,10 +95,10 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
                         for x in range(cx1 - cx0):
                             occ[bi, z, y, x] = 1
                 continue
-            wz0 = max(cz0 - 1, 0)
-            wy0 = max(cy0 - 1, 0)
-            wz1 = min(cz1 + 1, nz - 1)
-            wy1 = min(cy1 + 1, ny - 1)
+            wz0 = max(cz0 - apron, 0)
+            wy0 = max(cy0 - apron, 0)
+            wz1 = min(cz1 + apron, nz - 1)
+            wy1 = min(cy1 + apron, ny - 1)
             lz = wz1 - wz0 + 1
             ly = wy1 - wy0 + 1
             for zz in range(lz):
@@ -104,8 +107,8 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
                     # (the window lies in the slot of the storage brick of cell (cz0, cy0, cx0)).
                     base = row_offset(pages, shift, snbx, snby, nx, ny, cz0, cy0, cx0, wz0 + zz, wy0 + yy)
                     for cx in range(cx0, cx1):
-                        i0 = max(cx - 1, 0)
-                        i1 = min(cx + 2, nx - 1)
+                        i0 = max(cx - apron, 0)
+                        i1 = min(cx + 1 + apron, nx - 1)
                         lo = np.float64(flat[base + i0])
                         hi = lo
                         for i in range(i0 + 1, i1 + 1):
@@ -118,8 +121,8 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
                         mx_hi[zz, yy, cx - cx0] = hi
             for zz in range(lz):
                 for cy in range(cy0, cy1):
-                    j0 = max(cy - 1, 0) - wy0
-                    j1 = min(cy + 2, ny - 1) - wy0
+                    j0 = max(cy - apron, 0) - wy0
+                    j1 = min(cy + 1 + apron, ny - 1) - wy0
                     for xx in range(cx1 - cx0):
                         lo = mx_lo[zz, j0, xx]
                         hi = mx_hi[zz, j0, xx]
@@ -131,8 +134,8 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
                         my_lo[zz, cy - cy0, xx] = lo
                         my_hi[zz, cy - cy0, xx] = hi
             for cz in range(cz0, cz1):
-                k0 = max(cz - 1, 0) - wz0
-                k1 = min(cz + 2, nz - 1) - wz0
+                k0 = max(cz - apron, 0) - wz0
+                k1 = min(cz + 1 + apron, nz - 1) - wz0
                 for yy in range(cy1 - cy0):
                     for xx in range(cx1 - cx0):
                         lo = my_lo[k0, yy, xx]

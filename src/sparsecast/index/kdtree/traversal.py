@@ -1,17 +1,30 @@
-"""k-d tree traversal: a per-frame sorted leaf list (shallow) or a per-ray stack (deep).
+"""k-d tree traversal: a per-frame sorted leaf list (shallow), or per 8x8 tile a
+frustum-culled leaf list with a per-ray stack as its fallback (deep).
 
-Exactness. Leaves are disjoint boxes covering every occupied cell, and occupied
-cells include a one-cell apron around every cell where a sample can have
-non-zero opacity (see :mod:`.build`). Leaves are yielded in a visibility order
-(the k-d tree's: near child first, by the eye's side of the split plane, or the
-ray direction's sign), so their intervals come front to back. Each interval is
-widened by a tiny ``EPS`` (and clipped to the ray's ``[t_lo, t_hi]``) so that
-float rounding of the ray/box clip can never drop a sample lying on a face
-shared by two leaves; a widened interval only adds lattice samples of the clip
-box, in order, which the naive marcher takes too. A ray lying exactly in a split
-plane may see the two children's intervals interleave; every sample of non-zero
-opacity in that plane lies in both children (its cells on both sides are
-occupied), so either order keeps them.
+Exactness. Leaves are disjoint boxes covering every occupied cell, grown by
+:data:`~.build.BOX_MARGIN` so that every sample of non-zero opacity lies inside
+a leaf's ray interval (see :mod:`.build`, "Exactness without the apron"). Leaves
+are yielded in a visibility order (the k-d tree's: near child first, by the eye's
+side of the split plane, or the ray direction's sign), so their intervals come
+front to back. Each interval is widened by a tiny ``EPS`` (and clipped to the
+ray's ``[t_lo, t_hi]``) so that float rounding of the ray/box clip can never drop
+a sample lying on a face shared by two leaves; a widened interval only adds
+lattice samples of the clip box, in order, which the naive marcher takes too. A
+ray lying exactly in a split plane may see the two children's intervals
+interleave; every sample of non-zero opacity in that plane lies in both children
+(its cells on both sides are occupied), so either order keeps them.
+
+Tile lists. Ray generation is affine in the pixel, so the rays of an 8x8 tile lie
+in the convex hull of its four corner rays: a frustum bounded by four planes,
+each through two adjacent corner rays. :func:`start_tile` walks the tree once per
+tile, dropping the nodes wholly outside a plane (by more than
+:data:`FRUSTUM_TOL` of the coordinates, far above the rounding of any ray of the
+tile), and keeps the leaves left in visibility order; each ray then clips only
+those boxes. A node dropped this way meets no ray of the tile, so every ray
+meets the same leaves in the same order as its own traversal would. The order is
+the per-ray rule when the four corners agree on the sign of the split axis's
+direction (then every ray of the tile does), else the eye's side (perspective:
+the tile's rays share one eye).
 """
 
 from __future__ import annotations
@@ -23,13 +36,17 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
-from ...kernels.ray import clip_box
-from ..interval import make_scratch, next_interval, record_class, start_ray
+from ...kernels.ray import clip_box, inverse, slab
+from ..interval import make_scratch, next_interval, record_class, start_ray, start_tile
 
-__all__ = ["KdListRecord", "KdStackRecord", "EPS", "widen", "next_listed_leaf"]
+__all__ = ["KdListRecord", "KdStackRecord", "EPS", "TILE_LEAVES", "FRUSTUM_TOL", "widen", "next_listed_leaf"]
 
 #: relative widening of every leaf's ray interval (see the module docstring)
 EPS = 1e-7
+#: leaves a tile's list holds by default; a tile whose frustum meets more traverses per ray
+TILE_LEAVES = 48
+#: distance tolerance of the tile frustum test, relative to the coordinates' size
+FRUSTUM_TOL = 1e-6
 
 
 class KdListRecord(NamedTuple):
@@ -61,15 +78,20 @@ class KdStackRecord(NamedTuple):
         Index-space node boxes.
     stack_size : int
         Stack entries a ray can need (``2 * height + 4``).
+    tile_leaves : int
+        Leaves a tile's frustum-culled list may hold (:data:`TILE_LEAVES`); a tile
+        whose frustum meets more, and every tile when 0, traverses per ray.
     """
 
     SCRATCH = True
+    TILE = True
 
     node_axis: np.ndarray
     node_child: np.ndarray
     node_lo: np.ndarray
     node_hi: np.ndarray
     stack_size: int
+    tile_leaves: int
 
 
 @njit(cache=True, inline="always")
@@ -98,6 +120,119 @@ def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     return math.inf, -math.inf, j
 
 
+@njit(cache=True, inline="always")
+def _plane(corners, i):
+    """Inward side plane ``(nx, ny, nz, px, py, pz, tol)`` of a tile frustum through
+    corner rays ``i`` and ``i + 1`` (``n == 0``: no plane, a degenerate tile edge)."""
+    ox, oy, oz, dx, dy, dz = corners[i]
+    jx, jy, jz, ex, ey, ez = corners[(i + 1) % 4]
+    kx, ky, kz, fx, fy, fz = corners[(i + 2) % 4]
+    lx, ly, lz, gx, gy, gz = corners[(i + 3) % 4]
+    # The plane holds both rays: through o_i, spanned by d_i and (o_j + d_j) - o_i
+    # (perspective: d_i x d_j; orthographic: d x (o_j - o_i)).
+    ux = jx - ox + ex
+    uy = jy - oy + ey
+    uz = jz - oz + ez
+    nx = dy * uz - dz * uy
+    ny = dz * ux - dx * uz
+    nz = dx * uy - dy * ux
+    # Inward: towards the two other corner rays (their points at t = 1).
+    qx = 0.5 * (kx + fx + lx + gx) - ox
+    qy = 0.5 * (ky + fy + ly + gy) - oy
+    qz = 0.5 * (kz + fz + lz + gz) - oz
+    side = nx * qx + ny * qy + nz * qz
+    norm = abs(nx) + abs(ny) + abs(nz)
+    scale = 1.0 + max(abs(ox), abs(oy), abs(oz))
+    if not abs(side) > 1e-9 * norm * (abs(qx) + abs(qy) + abs(qz)) or norm == 0.0:
+        return 0.0, 0.0, 0.0, ox, oy, oz, 0.0
+    if side < 0.0:
+        nx = -nx
+        ny = -ny
+        nz = -nz
+    return nx, ny, nz, ox, oy, oz, FRUSTUM_TOL * norm * scale
+
+
+@njit(cache=True, inline="always")
+def _outside(pl, lo, hi, n):
+    """Whether box ``n`` lies wholly outside the plane ``pl`` (by more than its tolerance)."""
+    nx, ny, nz, px, py, pz, tol = pl
+    if tol == 0.0:
+        return False
+    # The box corner farthest along n.
+    bx = hi[n, 0] if nx > 0.0 else lo[n, 0]
+    by = hi[n, 1] if ny > 0.0 else lo[n, 1]
+    bz = hi[n, 2] if nz > 0.0 else lo[n, 2]
+    reach = 1.0 + max(abs(bx), abs(by), abs(bz))
+    return nx * (bx - px) + ny * (by - py) + nz * (bz - pz) < -tol * reach
+
+
+@overload(start_tile, jit_options={"cache": True}, inline="always")
+def _tile(record, scratch, corners):
+    if record_class(record) is not KdStackRecord:
+        return None
+
+    def impl(record, scratch, corners):
+        # The tile's leaves front to back, culled by its frustum: scratch[0] is their
+        # count (-1: more than tile_leaves, rays traverse the tree themselves),
+        # scratch[1:1 + tile_leaves] the leaves' nodes, the rest a stack.
+        # Order: the per-ray rule (near child by the direction's sign) when the four
+        # corner rays agree on the split axis; else (perspective: one eye) the eye's
+        # side, which is front to back for every ray from that eye.
+        lo = record.node_lo
+        hi = record.node_hi
+        axis = record.node_axis
+        child = record.node_child
+        cap = record.tile_leaves
+        scratch[0] = 0 if cap > 0 else -1
+        if axis.shape[0] == 0 or cap == 0:
+            return
+        p0 = _plane(corners, 0)
+        p1 = _plane(corners, 1)
+        p2 = _plane(corners, 2)
+        p3 = _plane(corners, 3)
+        eye = corners[0]
+        base = 1 + cap  # the stack, as offsets into scratch (no slice: a view per call)
+        scratch[base] = 0
+        sp = 1
+        count = 0
+        while sp > 0:
+            sp -= 1
+            n = scratch[base + sp]
+            if _outside(p0, lo, hi, n) or _outside(p1, lo, hi, n) or _outside(p2, lo, hi, n) \
+                    or _outside(p3, lo, hi, n):
+                continue
+            ax = axis[n]
+            if ax < 0:
+                if count == cap:
+                    scratch[0] = -1
+                    return
+                scratch[1 + count] = n
+                count += 1
+                continue
+            c = child[n]
+            pos = 0
+            for q in range(4):
+                d = corners[q][3 + ax]
+                if d >= 0.0:
+                    pos += 1
+            if pos == 4:
+                left_first = True
+            elif pos == 0:
+                left_first = False
+            else:
+                left_first = eye[ax] <= hi[c, ax]
+            if left_first:
+                scratch[base + sp] = c + 1
+                scratch[base + sp + 1] = c
+            else:
+                scratch[base + sp] = c
+                scratch[base + sp + 1] = c + 1
+            sp += 2
+        scratch[0] = count
+
+    return impl
+
+
 @overload(start_ray, jit_options={"cache": True}, inline="always")
 def _start(record, scratch, ray, t_lo, t_hi):
     cls = record_class(record)
@@ -106,11 +241,22 @@ def _start(record, scratch, ray, t_lo, t_hi):
     if cls is KdStackRecord:
 
         def impl(record, scratch, ray, t_lo, t_hi):
-            sp = 0
-            if record.node_axis.shape[0] > 0:
-                scratch[0] = 0
-                sp = 1
-            return (sp, t_lo, t_hi)
+            # List mode: position 0 of the tile's list (stack pointer -1); stack
+            # mode (the tile's list overflowed): the root on the stack.
+            listed = scratch[0]
+            sp = -1
+            if listed < 0:
+                sp = 0
+                if record.node_axis.shape[0] > 0:
+                    scratch[1 + record.tile_leaves] = 0
+                    sp = 1
+            # The ray's slab inverses, once per ray rather than once per node box
+            # (the same floats :func:`clip_box` computes).
+            _, _, _, dx, dy, dz = ray
+            ix, fx = inverse(dx)
+            iy, fy = inverse(dy)
+            iz, fz = inverse(dz)
+            return (0, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
 
         return impl
 
@@ -118,7 +264,7 @@ def _start(record, scratch, ray, t_lo, t_hi):
 @overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _scratch(record):
     if record_class(record) is KdStackRecord:
-        return lambda record: np.empty(record.stack_size, np.int32)
+        return lambda record: np.empty(1 + record.tile_leaves + record.stack_size, np.int32)
 
 
 @overload(next_interval, jit_options={"cache": True}, inline="always")
@@ -138,30 +284,46 @@ def _next(record, scratch, ray, state, t_covered):
             # A child is pushed only when the ray's widened interval meets it,
             # the near child last (popped first): the left child when the ray's
             # direction on the split axis is >= 0.
-            sp, t_lo, t_hi = state
+            j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz = state
             ox, oy, oz, dx, dy, dz = ray
             lo = record.node_lo
             hi = record.node_hi
-            stack = scratch
+            if sp < 0:
+                # The tile's leaf list, in its visibility order.
+                count = scratch[0]
+                while j < count:
+                    n = scratch[1 + j]
+                    j += 1
+                    tn, tf = slab(ox, ix, fx, lo[n, 0], hi[n, 0], -math.inf, math.inf)
+                    tn, tf = slab(oy, iy, fy, lo[n, 1], hi[n, 1], tn, tf)
+                    tn, tf = slab(oz, iz, fz, lo[n, 2], hi[n, 2], tn, tf)
+                    t0, t1 = widen(tn, tf, t_lo, t_hi)
+                    if t0 <= t1:
+                        return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+            base = 1 + record.tile_leaves
             while sp > 0:
                 sp -= 1
-                n = stack[sp]
-                tn, tf = clip_box(ox, oy, oz, dx, dy, dz, lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2])
+                n = scratch[base + sp]
+                # clip_box's arithmetic, with the ray's inverses from start_ray
+                tn, tf = slab(ox, ix, fx, lo[n, 0], hi[n, 0], -math.inf, math.inf)
+                tn, tf = slab(oy, iy, fy, lo[n, 1], hi[n, 1], tn, tf)
+                tn, tf = slab(oz, iz, fz, lo[n, 2], hi[n, 2], tn, tf)
                 t0, t1 = widen(tn, tf, t_lo, t_hi)
                 if t0 > t1:
                     continue
                 ax = record.node_axis[n]
                 if ax < 0:
-                    return t0, t1, (sp, t_lo, t_hi)
+                    return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
                 c = record.node_child[n]
                 d = dx if ax == 0 else (dy if ax == 1 else dz)
                 if d >= 0.0:
-                    stack[sp] = c + 1
-                    stack[sp + 1] = c
+                    scratch[base + sp] = c + 1
+                    scratch[base + sp + 1] = c
                 else:
-                    stack[sp] = c
-                    stack[sp + 1] = c + 1
+                    scratch[base + sp] = c
+                    scratch[base + sp + 1] = c + 1
                 sp += 2
-            return math.inf, -math.inf, (sp, t_lo, t_hi)
+            return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
 
         return impl_stack
