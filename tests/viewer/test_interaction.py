@@ -148,6 +148,24 @@ def test_projection_inverts_the_renderers_primary_rays(name):
     np.testing.assert_allclose(got, [_python_pixel(cam, p, w, h) for p in world], atol=1e-6)
 
 
+@pytest.mark.parametrize("name", ["perspective-panned", "orthographic"])
+def test_pixel_ray_is_the_renderers_ray(name):
+    import numpy as np
+
+    from sparsecast.kernels.camera import primary_ray
+
+    _, cam = _cameras()[name]
+    w, h = 40, 30
+    fc = json.dumps(_frame_camera(cam, w, h))
+    for col, row in ((0, 0), (39, 29), (17, 8)):
+        o, d = js(f"ui.pixelRay({fc}, {col + 0.5}, {row + 0.5}, {w}, {h})")
+        ref = np.array(primary_ray(cam.ray_params(w, h), col, row, w, h))
+        np.testing.assert_allclose(np.array(d) / np.linalg.norm(d), ref[3:], atol=1e-12)
+        # same line: the renderer's origin lies on it
+        diff = ref[:3] - np.array(o)
+        np.testing.assert_allclose(diff - (diff @ ref[3:]) * ref[3:], 0, atol=1e-9)
+
+
 def test_projection_refuses_points_behind_a_perspective_eye_and_clips_edges():
     vol, cam = _cameras()["perspective"]
     fc = json.dumps(_frame_camera(cam, 64, 64))
@@ -187,15 +205,15 @@ def _drag(fc, bounds, box, axis, side, dx, dy, w=96, h=96):
 @pytest.mark.parametrize("axis, side", [(0, "hi"), (1, "lo"), (2, "hi")])
 def test_dragging_a_face_handle_moves_the_face_under_the_pointer(name, axis, side):
     """Drag a face's handle along the image direction of its axis: the face follows the
-    pointer (its centre ends under it, to a pixel for a perspective camera, which is not
-    linear); drag across that direction: the face stays."""
+    pointer (its centre ends under it, perspective included, where equal image steps are
+    not equal steps along the axis); drag across that direction: the face stays."""
     import numpy as np
 
     vol, cam = _cameras()[name]
     w = h = 96
     lo, hi = vol.bounds
     bounds = [lo.tolist(), hi.tolist()]
-    box = [[0.2, 0.1, 0.3], [0.7, 0.8, 0.75]]
+    box = [[0.2, 0.35, 0.3], [0.7, 0.8, 0.75]]
 
     def centre_px(b):
         c = 0.5 * (np.array(b[0]) + np.array(b[1]))
@@ -209,7 +227,7 @@ def test_dragging_a_face_handle_moves_the_face_under_the_pointer(name, axis, sid
     step = centre_px(moved) - centre_px(box)
     assert np.linalg.norm(step) > 2  # (these views see every axis from the side)
     fc = json.dumps(_frame_camera(cam, w, h))
-    for k in (0.5, 1.0, -0.8):
+    for k in (0.5, 1.0, 2.0, -0.8):
         d = k * step
         new = _drag(fc, bounds, box, axis, side, *d.tolist())
         b2 = [r[:] for r in box]
@@ -217,7 +235,10 @@ def test_dragging_a_face_handle_moves_the_face_under_the_pointer(name, axis, sid
         f = new[0 if side == "lo" else 1]
         f0 = box[0 if side == "lo" else 1][axis]
         assert np.sign(f - f0) == np.sign(k) * (-1 if side == "lo" else 1)
-        assert np.linalg.norm(centre_px(b2) - (centre_px(box) + d)) < 0.5
+        assert np.linalg.norm(centre_px(b2) - (centre_px(box) + d)) < 1e-6
+        # Any motion across the axis's image adds nothing.
+        across = d + 0.7 * np.array([-step[1], step[0]])
+        assert _drag(fc, bounds, box, axis, side, *across.tolist()) == pytest.approx(new, abs=1e-9)
     perp = np.array([-step[1], step[0]])
     assert _drag(fc, bounds, box, axis, side, *perp.tolist()) == pytest.approx([box[0][axis], box[1][axis]], abs=1e-9)
 

@@ -146,23 +146,47 @@
     return [(p1[0] - p0[0]) / h, (p1[1] - p0[1]) / h];
   }
 
+  // World ray [origin, direction] the renderer casts through image position (x, y) (the
+  // forward map of projectPoint; the direction is not normalised).
+  function pixelRay(cam, x, y, width, height) {
+    const u = (x / width) * 2 - 1, v = 1 - (y / height) * 2;
+    const off = [0, 1, 2].map((j) => u * cam.right[j] + v * cam.up[j]);
+    if (cam.perspective) return [cam.eye.slice(), [0, 1, 2].map((j) => cam.forward[j] + off[j])];
+    return [[0, 1, 2].map((j) => cam.eye[j] + off[j]), cam.forward.slice()];
+  }
+
   // Clip interval [lo, hi] of `axis` after dragging its `side` face handle by (dx, dy)
   // image pixels from where the drag started (box = the clip box then, cam = the camera
   // of the frame shown). The motion's component along the face normal's image direction
-  // moves the face (motion across it does nothing); the face stops at the opposite face
-  // and at the volume's box, so 0 <= lo <= hi <= 1 holds, as clipPair keeps it.
+  // moves the face, motion across it does nothing: the pointer is projected onto the
+  // image of the axis through the face centre (a straight line, perspective or not), and
+  // the face goes where the ray through that point meets the axis, so the handle stays
+  // under the pointer. The face stops at the opposite face and at the volume's box, so
+  // 0 <= lo <= hi <= 1 holds, as clipPair keeps it.
   function faceDrag(cam, bounds, box, axis, side, dx, dy, width, height) {
-    const lo = box[0][axis], hi = box[1][axis];
+    const lo = box[0][axis], hi = box[1][axis], f0 = side === "lo" ? lo : hi;
     const s = faceAxisPx(cam, bounds, box, axis, side, width, height);
     const n2 = s ? s[0] * s[0] + s[1] * s[1] : 0;
     if (!(n2 >= MIN_AXIS_PX * MIN_AXIS_PX)) return [lo, hi];
-    const t = (side === "lo" ? lo : hi) + (dx * s[0] + dy * s[1]) / n2;
-    return side === "lo" ? [Math.max(0, Math.min(hi, t)), hi] : [lo, Math.min(1, Math.max(lo, t))];
+    const [wlo, whi] = clipBoxWorld(bounds, box);
+    const c = faceHandles(wlo, whi)[2 * axis + (side === "hi" ? 1 : 0)].point;
+    const p0 = projectPoint(cam, c, width, height);
+    const k = (dx * s[0] + dy * s[1]) / n2;
+    const [o, d] = pixelRay(cam, p0[0] + k * s[0], p0[1] + k * s[1], width, height);
+    // Closest point of the axis line c + t a (t in box fractions) to the ray o + r d.
+    const a = [0, 0, 0]; a[axis] = bounds[1][axis] - bounds[0][axis];
+    const w0 = sub(c, o), A = dot(a, a), B = dot(a, d), C = dot(d, d), D = dot(a, w0), E = dot(d, w0);
+    const den = A * C - B * B;
+    // A ray along the axis (the face head-on) was refused above; this guards rounding.
+    let t = den > 1e-12 * A * C ? (B * E - C * D) / den : k;
+    if (cam.perspective && depth(cam, c.map((v, j) => v + t * a[j])) <= 0) t = k;  // beyond the horizon
+    const f = f0 + t;
+    return side === "lo" ? [Math.max(0, Math.min(hi, f)), hi] : [lo, Math.min(1, Math.max(lo, f))];
   }
 
   const api = { orbitDrag, opacityAt, sliderValue, sliderPos, clipPair, ORBIT_DEG_PER_PX, SNAP_PX, SLIDER_STEPS,
                 depth, projectPoint, clipSegment, clipBoxWorld, boxEdges, faceHandles, pickHandle, faceAxisPx,
-                faceDrag, MIN_AXIS_PX };
+                pixelRay, faceDrag, MIN_AXIS_PX };
   if (typeof module !== "undefined" && module.exports) module.exports = api;
   else root.sparsecastInteraction = api;
 })(typeof window !== "undefined" ? window : globalThis);
