@@ -73,3 +73,236 @@ def test_clip_sliders_keep_lo_below_hi():
     assert js("ui.clipPair(0.2, 0.7, 'lo')") == [0.2, 0.7]
     assert js("ui.clipPair(0.8, 0.7, 'lo')") == [0.8, 0.8]  # lo pushed hi up
     assert js("ui.clipPair(0.3, 0.1, 'hi')") == [0.1, 0.1]  # hi pushed lo down
+
+
+# --- the clip-box overlay: projection with the frame's camera, face drags ------------------
+
+def _cameras():
+    """Viewer-like cameras: perspective orbits (one panned and zoomed, one mirrored by a
+    left-handed orientation) and orthographic ones, framing an anisotropic box."""
+    import numpy as np
+
+    import sparsecast as sc
+
+    vol = sc.Volume(np.zeros((20, 14, 9), np.float32), spacing=(1.0, 1.5, 0.7), origin=(-3.0, 2.0, 5.0))
+    vol_las = sc.Volume(np.zeros((20, 14, 9), np.float32), orientation="LAS")
+    return {
+        "perspective": (vol, sc.Camera.orbit(vol, 30.0, 20.0)),
+        "perspective-panned": (vol, sc.Camera.orbit(vol, 200.0, -35.0, zoom=1.7, pan=(0.3, -0.2), fov_y=50.0)),
+        "perspective-mirrored": (vol_las, sc.Camera.orbit(vol_las, 15.0, 10.0, view="anterior")),
+        "orthographic": (vol, sc.Camera.orbit(vol, 120.0, 60.0, projection="orthographic", zoom=1.3)),
+        "orthographic-look-at": (vol, sc.Camera.look_at((40.0, -30.0, 20.0), vol.center, projection="orthographic",
+                                                         ortho_height=25.0)),
+    }
+
+
+def _frame_camera(cam, w, h):
+    from sparsecast.viewer.session import frame_camera
+
+    return frame_camera(cam, w, h)
+
+
+def _python_pixel(cam, p, w, h):
+    """Image position (x right, y down, pixels) of world point ``p``, derived from the
+    camera's basis and field of view (not from ray_params)."""
+    import numpy as np
+
+    forward, right, up = cam.basis()
+    d = np.asarray(p, float) - cam.eye
+    if cam.projection == "perspective":
+        half = np.tan(np.radians(cam.fov_y) / 2)
+        x, y = d @ right / (d @ forward), d @ up / (d @ forward)
+    else:
+        half = cam.ortho_height / 2
+        x, y = d @ right, d @ up
+    return (x / (half * w / h) + 1) / 2 * w, (1 - y / half) / 2 * h
+
+
+@pytest.mark.parametrize("name", list(_cameras()))
+def test_projection_inverts_the_renderers_primary_rays(name):
+    """A point anywhere on the ray the renderer casts through pixel (col, row) projects
+    to that pixel's centre, and any world point lands where the camera's own geometry
+    puts it: the overlay is drawn with the camera the server renders with."""
+    import numpy as np
+
+    from sparsecast.kernels.camera import primary_ray
+
+    vol, cam = _cameras()[name]
+    w, h = 72, 48
+    params = cam.ray_params(w, h)
+    pixels = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1), (36, 24), (11, 37), (60, 5)]
+    pts, want = [], []
+    for col, row in pixels:
+        ray = np.array(primary_ray(params, col, row, w, h))
+        for t in (0.5 * vol.diagonal, vol.diagonal, 2.0 * vol.diagonal):
+            pts.append((ray[:3] + t * ray[3:]).tolist())
+            want.append((col + 0.5, row + 0.5))
+    fc = json.dumps(_frame_camera(cam, w, h))
+    got = js(f"{json.dumps(pts)}.map((p) => ui.projectPoint({fc}, p, {w}, {h}))")
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    # Arbitrary points (the volume's corners and beyond) against the basis-and-fov derivation.
+    lo, hi = vol.bounds
+    rng = np.random.default_rng(1)
+    world = (lo + rng.uniform(-0.3, 1.3, (20, 3)) * (hi - lo)).tolist()
+    got = js(f"{json.dumps(world)}.map((p) => ui.projectPoint({fc}, p, {w}, {h}))")
+    np.testing.assert_allclose(got, [_python_pixel(cam, p, w, h) for p in world], atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["perspective-panned", "orthographic"])
+def test_pixel_ray_is_the_renderers_ray(name):
+    import numpy as np
+
+    from sparsecast.kernels.camera import primary_ray
+
+    _, cam = _cameras()[name]
+    w, h = 40, 30
+    fc = json.dumps(_frame_camera(cam, w, h))
+    for col, row in ((0, 0), (39, 29), (17, 8)):
+        o, d = js(f"ui.pixelRay({fc}, {col + 0.5}, {row + 0.5}, {w}, {h})")
+        ref = np.array(primary_ray(cam.ray_params(w, h), col, row, w, h))
+        np.testing.assert_allclose(np.array(d) / np.linalg.norm(d), ref[3:], atol=1e-12)
+        # same line: the renderer's origin lies on it
+        diff = ref[:3] - np.array(o)
+        np.testing.assert_allclose(diff - (diff @ ref[3:]) * ref[3:], 0, atol=1e-9)
+
+
+def test_projection_refuses_points_behind_a_perspective_eye_and_clips_edges():
+    vol, cam = _cameras()["perspective"]
+    fc = json.dumps(_frame_camera(cam, 64, 64))
+    behind = (cam.eye - (cam.target - cam.eye)).tolist()
+    front = cam.target.tolist()
+    assert js(f"ui.projectPoint({fc}, {behind}, 64, 64)") is None
+    seg = js(f"ui.clipSegment({fc}, {behind}, {front}, 0.5)")
+    assert js(f"ui.depth({fc}, {json.dumps(seg[0])})") == pytest.approx(0.5)
+    assert seg[1] == pytest.approx(front)
+    assert js(f"ui.clipSegment({fc}, {behind}, {behind}, 0.5)") is None
+
+
+def test_box_edges_and_face_handles():
+    import numpy as np
+
+    lo, hi = [0, -1, 2], [4, 3, 3]
+    edges = np.array(js(f"ui.boxEdges({lo}, {hi})"))
+    assert edges.shape == (12, 2, 3)
+    # Every edge joins two corners and runs along exactly one axis; 4 edges per axis.
+    axes = [int(np.flatnonzero(a != b)[0]) for a, b in edges if np.count_nonzero(a != b) == 1]
+    assert sorted(axes) == [0] * 4 + [1] * 4 + [2] * 4
+    assert {tuple(c) for c in edges.reshape(-1, 3)} == {(x, y, z) for x in (0, 4) for y in (-1, 3) for z in (2, 3)}
+    handles = js(f"ui.faceHandles({lo}, {hi})")
+    assert [(f["axis"], f["side"]) for f in handles] == [(j, s) for j in range(3) for s in ("lo", "hi")]
+    assert handles[1]["point"] == [4, 1, 2.5] and handles[4]["point"] == [2, 1, 2]
+    box = js("ui.clipBoxWorld([[-2, 0, 10], [2, 8, 20]], [[0, 0.25, 0.5], [1, 0.75, 0.6]])")
+    np.testing.assert_allclose(box, [[-2, 2, 15], [2, 6, 16]])
+    assert js("ui.pickHandle([[10, 10], null, [14, 10]], 13, 10, 6)") == 2
+    assert js("ui.pickHandle([[10, 10], [50, 50]], 30, 30, 6)") == -1
+
+
+def _drag(fc, bounds, box, axis, side, dx, dy, w=96, h=96):
+    return js(f"ui.faceDrag({fc}, {json.dumps(bounds)}, {json.dumps(box)}, {axis}, '{side}', {dx}, {dy}, {w}, {h})")
+
+
+@pytest.mark.parametrize("name", ["perspective", "perspective-panned", "orthographic"])
+@pytest.mark.parametrize("axis, side", [(0, "hi"), (1, "lo"), (2, "hi")])
+def test_dragging_a_face_handle_moves_the_face_under_the_pointer(name, axis, side):
+    """Drag a face's handle along the image direction of its axis: the face follows the
+    pointer (its centre ends under it, perspective included, where equal image steps are
+    not equal steps along the axis); drag across that direction: the face stays."""
+    import numpy as np
+
+    vol, cam = _cameras()[name]
+    w = h = 96
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    box = [[0.2, 0.35, 0.3], [0.7, 0.8, 0.75]]
+
+    def centre_px(b):
+        c = 0.5 * (np.array(b[0]) + np.array(b[1]))
+        c[axis] = b[0 if side == "lo" else 1][axis]
+        return np.array(_python_pixel(cam, lo + c * (hi - lo), w, h))
+
+    # The face's direction on screen, from the Python camera: where the centre goes when
+    # the face moves by 0.1 of the box.
+    moved = [r[:] for r in box]
+    moved[0 if side == "lo" else 1][axis] += -0.1 if side == "lo" else 0.1
+    step = centre_px(moved) - centre_px(box)
+    assert np.linalg.norm(step) > 2  # (these views see every axis from the side)
+    fc = json.dumps(_frame_camera(cam, w, h))
+    for k in (0.5, 1.0, 2.0, -0.8):
+        d = k * step
+        new = _drag(fc, bounds, box, axis, side, *d.tolist())
+        b2 = [r[:] for r in box]
+        b2[0][axis], b2[1][axis] = new
+        f = new[0 if side == "lo" else 1]
+        f0 = box[0 if side == "lo" else 1][axis]
+        assert np.sign(f - f0) == np.sign(k) * (-1 if side == "lo" else 1)
+        assert np.linalg.norm(centre_px(b2) - (centre_px(box) + d)) < 1e-6
+        # Any motion across the axis's image adds nothing.
+        across = d + 0.7 * np.array([-step[1], step[0]])
+        assert _drag(fc, bounds, box, axis, side, *across.tolist()) == pytest.approx(new, abs=1e-9)
+    perp = np.array([-step[1], step[0]])
+    assert _drag(fc, bounds, box, axis, side, *perp.tolist()) == pytest.approx([box[0][axis], box[1][axis]], abs=1e-9)
+
+
+def test_face_drags_stop_at_the_opposite_face_and_the_volume_box():
+    import numpy as np
+
+    vol, cam = _cameras()["perspective"]
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    box = [[0.2, 0.1, 0.3], [0.7, 0.8, 0.75]]
+    fc = json.dumps(_frame_camera(cam, 96, 96))
+    s = np.array(js(f"ui.faceAxisPx({fc}, {json.dumps(bounds)}, {json.dumps(box)}, 0, 'hi', 96, 96)"))
+    far = (s * 5).tolist()  # five boxes along +x
+    assert _drag(fc, bounds, box, 0, "hi", *far) == [0.2, 1.0]
+    assert _drag(fc, bounds, box, 0, "lo", *far) == [0.7, 0.7]  # lo stops at hi
+    back = (-s * 5).tolist()
+    assert _drag(fc, bounds, box, 0, "hi", *back) == [0.2, 0.2]  # hi stops at lo
+    assert _drag(fc, bounds, box, 0, "lo", *back) == [0.0, 0.7]
+
+
+def test_a_face_seen_head_on_does_not_move():
+    """Looking straight down z, the z faces' normals have no extent on screen: a drag
+    there would be a division by ~0, so it does nothing."""
+    import sparsecast as sc
+
+    vol, _ = _cameras()["perspective"]
+    cam = sc.Camera.look_at(vol.center + [0, 0, 100.0], vol.center, up=(0, 1, 0))
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    box = [[0.2, 0.1, 0.3], [0.7, 0.8, 0.75]]
+    fc = json.dumps(_frame_camera(cam, 96, 96))
+    n = js(f"Math.hypot(...ui.faceAxisPx({fc}, {json.dumps(bounds)}, {json.dumps(box)}, 2, 'hi', 96, 96))")
+    assert n < js("ui.MIN_AXIS_PX")
+    assert _drag(fc, bounds, box, 2, "hi", 30, -40) == [0.3, 0.75]
+    assert _drag(fc, bounds, box, 0, "hi", 30, 0) != [0.2, 0.7]  # x still moves
+
+
+def test_the_overlay_outlines_the_clip_box_the_session_renders():
+    """End to end without a browser: render a clip box of an opaque volume in a viewer
+    session, project the box with the hello's world box and the frame's camera as the
+    page does: the projected corners bound the rendered footprint to a pixel."""
+    import numpy as np
+
+    import sparsecast as sc
+    from sparsecast.viewer.messages import CameraSpec, ClipSpec, RenderRequest, TFSpec
+    from sparsecast.viewer.session import Session, ViewerData
+
+    vol = sc.Volume(np.ones((24, 20, 16), np.float32), spacing=(1.0, 1.3, 0.9), origin=(5.0, -2.0, 1.0))
+    opaque = TFSpec(((0.0, 1.0, 1.0, 1.0, 1.0), (1.0, 1.0, 1.0, 1.0, 1.0)), None, (0.0, 2.0))
+    data = ViewerData.create(vol, "viridis", index="naive")
+    box = ((0.15, 0.3, 0.2), (0.8, 0.9, 0.6))
+    s = Session(data)
+    w, h = 88, 64
+    for cam in (CameraSpec(35.0, 25.0, 1.0), CameraSpec(250.0, -40.0, 1.6, (0.1, -0.2))):
+        _, st = s.render_frame(s.update(RenderRequest(width=w, height=h, tf=opaque, camera=cam,
+                                                      clip=ClipSpec(box))))
+        # white on the black background: the colour is the opacity
+        rows, cols = np.nonzero(s.last_rgba[..., :3].max(axis=-1) > 0.05)
+        assert len(rows) > 100
+        fc, bounds = json.dumps(st["camera"]), json.dumps(data.hello()["volume"]["bounds"])
+        pts = np.array(js(f"(() => {{ const [lo, hi] = ui.clipBoxWorld({bounds}, {json.dumps(box)});"
+                          f"return ui.boxEdges(lo, hi).flat().map((p) => ui.projectPoint({fc}, p, {w}, {h})); }})()"))
+        # pixel (col, row) covers [col, col + 1): the footprint's extent in image coordinates
+        got = [cols.min(), cols.max() + 1, rows.min(), rows.max() + 1]
+        want = [pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()]
+        np.testing.assert_allclose(got, want, atol=1.0)

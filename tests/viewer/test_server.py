@@ -137,6 +137,9 @@ def test_hello_frames_tf_change_and_index_cache(client, data):
         assert (st1["seq"], st1["width"], st1["height"], st1["index"]) == (1, 96, 64, "grid-pc")
         assert st1["rebuilt"] and st1["samples"] > 0 and st1["frame_ms"] >= 0 and st1["rebuild_ms"] >= 0
         assert im1.max() > 0  # something visible
+        # What the page's clip-box overlay projects with: the frame's camera, the world box.
+        assert set(st1["camera"]) == {"eye", "forward", "right", "up", "perspective"}
+        assert hello["volume"]["bounds"] == [c.tolist() for c in data.volume.bounds]
 
         # Camera move: the index is reused.
         ws.send_text(render_msg(2, camera=dict(cam, azimuth=80), format="png"))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import sparsecast as sc
-from sparsecast.viewer.messages import ClipSpec, IndexSpec, LabelSpec, RenderRequest
+from sparsecast.viewer.messages import CameraSpec, ClipSpec, IndexSpec, LabelSpec, RenderRequest
 from sparsecast.viewer.session import Session, ViewerData, tf_from_spec
 
 ATOL = 1e-5
@@ -223,3 +223,23 @@ def test_smooth_label_boundaries_toggle_equals_render_of_the_smoothed_tf(segment
     np.testing.assert_allclose(again, smooth, atol=ATOL)
     _, back = frame(s, labels=LabelSpec(smooth=False))
     np.testing.assert_allclose(back, nearest, atol=ATOL)
+
+
+def test_hello_sends_the_world_box_and_frames_the_camera_they_were_rendered_with(segmentation):
+    """The page's clip-box overlay needs the box the clip fractions refer to and the exact
+    camera of each frame (full and preview sizes differ, and with them the aspect)."""
+    data = ViewerData.create(segmentation, sc.TransferFunction.labels([1, 2]))
+    h = data.hello()
+    lo, hi = segmentation.bounds
+    assert h["volume"]["bounds"] == [lo.tolist(), hi.tolist()]
+    s = Session(data)
+    cam = CameraSpec(70.0, -25.0, 1.4, (0.2, 0.1))
+    for preview, w, hh in ((False, 96, 40), (True, 1024, 600)):
+        snap = s.update(RenderRequest(width=w, height=hh, preview=preview, camera=cam))
+        _, st = s.render_frame(snap)
+        p = camera(segmentation, s).ray_params(st["width"], st["height"])
+        fc = st["camera"]
+        assert fc["perspective"] is True and (st["width"], st["height"]) == (snap.width, snap.height)
+        np.testing.assert_allclose([*fc["eye"], *fc["forward"], *fc["right"], *fc["up"]], p[:12], rtol=1e-12)
+        # right / up are the half extents of the image plane: their ratio is the frame's aspect
+        assert np.linalg.norm(fc["right"]) / np.linalg.norm(fc["up"]) == pytest.approx(st["width"] / st["height"])

@@ -33,6 +33,12 @@ clipping); ``labels`` replaces the visible set when ``visible`` is given and rec
 the ids in ``colors``. ``labels`` and ``time`` are accepted only when the viewer shows a
 label volume or a series (``label_ids`` / ``steps`` of :func:`parse_message`); a label
 volume renders ``dvr`` only.
+
+Server -> client (built in :mod:`.session`, nothing to validate here): the ``hello``
+(volume, with its world ``bounds`` that clip fractions refer to; lists; the starting
+state) and, before each frame's image, its status, whose ``camera`` is the camera that
+frame was rendered with (:func:`~sparsecast.viewer.session.frame_camera`): the page
+projects the clip box and its drag handles with it.
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ from .messages import (
 )
 
 __all__ = ["ViewerData", "Session", "LabelTable", "tf_from_spec", "spec_from_tf", "spec_from_preset",
-           "clip_world", "HISTOGRAM_BINS"]
+           "clip_world", "frame_camera", "HISTOGRAM_BINS"]
 
 #: one visible label: ``(id, r, g, b, a)``; a tuple of them is a label TF's cache key
 LabelEntry = tuple[int, float, float, float, float]
@@ -176,6 +176,21 @@ def clip_world(volume: Volume, clip: ClipSpec) -> dict[str, Any]:
     return {"clip_box": box, "clip_planes": planes or None}
 
 
+def frame_camera(camera: Camera, width: int, height: int) -> dict[str, Any]:
+    """The camera a frame was rendered with, as the page projects world points with it
+    (its clip-box overlay): :meth:`Camera.ray_params` by name.
+
+    The ray of normalised screen point ``(u, v)`` in ``[-1, 1]`` (``v`` up) is
+    ``eye + u right + v up`` along ``forward`` (orthographic) or from ``eye`` along
+    ``forward + u right + v up`` (perspective); ``right`` and ``up`` are the image
+    plane's half extents (they carry the field of view and the aspect ``width / height``),
+    so the page needs no copy of the orbit and projection maths.
+    """
+    p = camera.ray_params(width, height)
+    return {"eye": p[0:3].tolist(), "forward": p[3:6].tolist(), "right": p[6:9].tolist(),
+            "up": p[9:12].tolist(), "perspective": bool(p[12])}
+
+
 def viewer_indices() -> list[str]:
     """Index names the viewer offers: ``auto`` (chosen per frame), then every index."""
     return [AUTO, *available_indices()]
@@ -291,7 +306,10 @@ class ViewerData:
         return {
             "type": "hello",
             "volume": {"name": v.name if self.series is None else self.series.name, "dims": list(v.dims),
-                       "dtype": str(v.dtype), "value_range": list(self.histogram_range)},
+                       "dtype": str(v.dtype), "value_range": list(self.histogram_range),
+                       # World box [[x0, y0, z0], [x1, y1, z1]] that clip fractions refer to
+                       # (clip_world); every step of a series shares it.
+                       "bounds": [[float(c) for c in corner] for corner in v.bounds]},
             # A label volume: the page's label table (ids ascending, parallel lists).
             "labels": None if lt is None else {
                 "ids": list(lt.ids), "counts": list(lt.counts),
@@ -475,16 +493,17 @@ class Session:
             ispec = IndexSpec(name, None)
         if not s.preview:
             self._settled = s.classification
+        camera = self._camera(s.camera, volume)
         if self.data.client is not None and s.mode == "dvr" and not self._render_kw(s, volume).get("clip_cap"):
             # The pieces on the cluster keep and rebuild their own indices.
-            img = render(volume, tf, self._camera(s.camera, volume), s.width, s.height, index=ispec.name,
+            img = render(volume, tf, camera, s.width, s.height, index=ispec.name,
                          client=self.data.client, pieces=self.data.pieces, **self._render_kw(s, volume))
             idx, build_ms = None, float(img.stats["build_ms"])
             rebuilt = build_ms > 0
         else:
             idx, build_ms, rebuilt = self._index(s, volume, classify, ispec)
             # DVR: the TF the cached index was built for (equal to tf; render checks identity).
-            img = render(volume, idx.tf if s.mode == "dvr" else tf, self._camera(s.camera, volume), s.width,
+            img = render(volume, idx.tf if s.mode == "dvr" else tf, camera, s.width,
                          s.height, index=idx, **self._render_kw(s, volume))
         st = img.stats
         if ispec.name == "naive":
@@ -519,6 +538,7 @@ class Session:
             "naive_ms": None if naive_ms is None else round(naive_ms, 3),
             "speedup": None if naive_ms is None or st["ms"] <= 0 else round(naive_ms / st["ms"], 2),
             "speedup_source": None if naive_ms is None else ("measured" if ispec.name == "naive" else "estimated"),
+            "camera": frame_camera(camera, s.width, s.height),
         }
         self.last_frame_ms = st["ms"]
         self.last_rgba = img.rgba  # (H, W, 4) premultiplied float32: what was encoded (tests)

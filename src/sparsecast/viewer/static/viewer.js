@@ -4,9 +4,12 @@
   const $ = (id) => document.getElementById(id);
   const ui = window.sparsecastInteraction;  // interaction.js: drag -> camera / opacity
   const view = $("view"), vctx = view.getContext("2d");
+  const overlay = $("clip-overlay"), octx = overlay.getContext("2d");
   const tfc = $("tf"), tctx = tfc.getContext("2d");
   const strip = $("tf-strip"), sctx = strip.getContext("2d");
   const IDLE_MS = 150, PICK_PX = 8;
+  // Clip-box handles: radius drawn and radius picked (canvas px); one colour per axis (x, y, z).
+  const HANDLE_R = 6, HANDLE_PICK_PX = 10, AXIS_COLOURS = ["#ff6b6b", "#7ee787", "#79c0ff"];
 
   const st = {
     ws: null, hello: null, camera: null, tf: null, index: null,
@@ -16,6 +19,9 @@
     seq: 0, frames: 0, previewFrames: 0, lastStatus: null, pendingStatus: null,
     dirty: false, preview: false, idleTimer: 0, rafQueued: false,
     cmapColors: {},
+    // the camera of the frame on screen (its status's `camera`): the clip-box overlay is
+    // drawn with it, so it stays on the picture while a new frame is on its way
+    frameCamera: null, handlePx: [], activeHandle: -1,
   };
   // Exposed for tests and the console.
   window.sparsecastViewer = st;
@@ -60,6 +66,7 @@
       st.frames += 1;
       if (status && status.preview) st.previewFrames += 1;
       if (status) { st.lastStatus = status; showStatus(status); if (!status.preview) showError(""); }
+      if (status && status.camera) { st.frameCamera = status.camera; drawOverlay(); }
     });
   }
 
@@ -131,7 +138,56 @@
     $("elevation").value = st.camera.elevation.toFixed(1);
     $("zoom").value = st.camera.zoom.toFixed(2);
     $("cell").disabled = !st.index.name.startsWith("grid");
+    drawOverlay();
   }
+
+  // --- clip-box overlay: the box's edges and a handle per face, projected with the camera
+  // of the frame shown (interaction.js does the maths) ---------------------------------
+  function drawOverlay() {
+    octx.clearRect(0, 0, overlay.width, overlay.height);
+    st.handlePx = [];
+    const cam = st.frameCamera;
+    if (!$("clip-show").checked || !cam || !st.clip || !st.hello) return;
+    const bounds = st.hello.volume.bounds, W = overlay.width, H = overlay.height;
+    const [lo, hi] = ui.clipBoxWorld(bounds, st.clip.box);
+    // Perspective: cut edges at a small depth in front of the eye (a zoom can put it inside the box).
+    const near = 1e-3 * Math.hypot(...[0, 1, 2].map((j) => bounds[1][j] - bounds[0][j]));
+    octx.lineWidth = 1.5; octx.strokeStyle = "rgba(255, 215, 90, 0.85)";
+    octx.beginPath();
+    for (const [a, b] of ui.boxEdges(lo, hi)) {
+      const seg = ui.clipSegment(cam, a, b, near);
+      if (!seg) continue;
+      const pa = ui.projectPoint(cam, seg[0], W, H), pb = ui.projectPoint(cam, seg[1], W, H);
+      if (pa && pb) { octx.moveTo(pa[0], pa[1]); octx.lineTo(pb[0], pb[1]); }
+    }
+    octx.stroke();
+    ui.faceHandles(lo, hi).forEach((f, i) => {
+      const p = ui.depth(cam, f.point) > near || !cam.perspective ? ui.projectPoint(cam, f.point, W, H) : null;
+      const s = p && ui.faceAxisPx(cam, bounds, st.clip.box, f.axis, f.side, W, H);
+      // A face seen head-on cannot be dragged (faceDrag would ignore it): no handle, so
+      // a press there orbits.
+      const draggable = s && Math.hypot(s[0], s[1]) >= ui.MIN_AXIS_PX;
+      st.handlePx.push(draggable ? p : null);
+      if (!draggable) return;
+      octx.beginPath(); octx.arc(p[0], p[1], HANDLE_R, 0, 2 * Math.PI);
+      octx.fillStyle = AXIS_COLOURS[f.axis];
+      octx.globalAlpha = i === st.activeHandle ? 1 : 0.75;
+      octx.fill();
+      octx.globalAlpha = 1; octx.strokeStyle = i === st.activeHandle ? "#fff" : "#000"; octx.lineWidth = 1.5;
+      octx.stroke();
+    });
+  }
+  // Canvas pixel of a pointer event on the view (the canvas may be drawn scaled).
+  function viewXY(e) {
+    const r = view.getBoundingClientRect();
+    return [(e.clientX - r.left) * (view.width / r.width), (e.clientY - r.top) * (view.height / r.height)];
+  }
+  const handleAt = (e) => { const [x, y] = viewXY(e); return ui.pickHandle(st.handlePx, x, y, HANDLE_PICK_PX); };
+  // CSS pixel (relative to the view's top-left) of handle i (x-lo, x-hi, y-lo, ...), or null: for tests.
+  st.handlePixel = (i) => {
+    const p = st.handlePx[i], r = view.getBoundingClientRect();
+    return p ? [p[0] * r.width / view.width, p[1] * r.height / view.height] : null;
+  };
 
   // --- requests: coalesced per animation frame; previews while interacting ----------
   function request(preview, all) {
@@ -165,10 +221,24 @@
   }
 
   // --- orbit / zoom -------------------------------------------------------------------
-  let drag = null;
-  // Left drag orbits; shift-drag, right or middle drag pans.
+  let drag = null, hdrag = null;
+  // Left drag orbits; shift-drag, right or middle drag pans; a left press on a clip-box
+  // handle drags that face instead.
   view.addEventListener("contextmenu", (e) => e.preventDefault());
   view.addEventListener("pointerdown", (e) => {
+    const hit = e.button === 0 && !e.shiftKey ? handleAt(e) : -1;
+    if (hit >= 0) {
+      const [x, y] = viewXY(e);
+      // Handles come in faceHandles' order: x-lo, x-hi, y-lo, y-hi, z-lo, z-hi. The drag maps
+      // pointer motion with the box and camera it started from (moving back puts the face back).
+      hdrag = { x, y, axis: hit >> 1, side: hit & 1 ? "hi" : "lo", box: st.clip.box.map((c) => c.slice()),
+                cam: st.frameCamera };
+      st.activeHandle = hit;
+      view.setPointerCapture(e.pointerId);
+      view.classList.add("dragging-handle");
+      drawOverlay();
+      return;
+    }
     const pan = st.camera.pan || [0, 0];
     drag = { x: e.clientX, y: e.clientY, az: st.camera.azimuth, el: st.camera.elevation,
              pan: e.shiftKey || e.button !== 0, px: pan[0], py: pan[1] };
@@ -176,7 +246,17 @@
     view.classList.add("dragging");
   });
   view.addEventListener("pointermove", (e) => {
-    if (!drag) return;
+    if (hdrag) {
+      const [x, y] = viewXY(e);
+      const [lo, hi] = ui.faceDrag(hdrag.cam, st.hello.volume.bounds, hdrag.box, hdrag.axis, hdrag.side,
+                                   x - hdrag.x, y - hdrag.y, view.width, view.height);
+      st.clip.box[0][hdrag.axis] = lo; st.clip.box[1][hdrag.axis] = hi;
+      // Like the clip sliders: preview frames while dragging; a clip change never rebuilds the index.
+      syncInputs();
+      request(true);
+      return;
+    }
+    if (!drag) { view.classList.toggle("on-handle", handleAt(e) >= 0); return; }
     if (drag.pan) {
       // One view height is two bounding-sphere radii divided by the zoom.
       const k = 2 / (view.clientHeight || 512) / st.camera.zoom;
@@ -190,7 +270,12 @@
     syncInputs();
     request(true);
   });
-  const endDrag = () => { if (drag) { drag = null; view.classList.remove("dragging"); request(false); } };
+  const endDrag = () => {
+    if (hdrag) {
+      hdrag = null; st.activeHandle = -1; view.classList.remove("dragging-handle"); drawOverlay(); request(false);
+    }
+    if (drag) { drag = null; view.classList.remove("dragging"); request(false); }
+  };
   view.addEventListener("pointerup", endDrag);
   view.addEventListener("pointercancel", endDrag);
   view.addEventListener("wheel", (e) => {
@@ -373,6 +458,7 @@
     }
   });
   $("clip-cap").addEventListener("change", () => { st.clip.cap = $("clip-cap").checked; request(false); });
+  $("clip-show").addEventListener("change", drawOverlay);
   $("clip-reset").addEventListener("click", () => {
     st.clip = { box: [[0, 0, 0], [1, 1, 1]], planes: [], cap: st.clip.cap }; syncInputs(); request(false);
   });
