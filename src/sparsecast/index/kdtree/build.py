@@ -16,7 +16,7 @@ construction fast enough to redo on every TF change with summed-volume tables
 
 ``kdtree-shallow`` applies Vidal's halting rule (both children >= 10 % of the
 root's volume and a smaller summed volume); ``kdtree-deep`` splits down to leaves
-of ``min_leaf`` (8) cells on the split axis.
+of ``min_leaf`` (4) cells on the split axis.
 
 Arrays (traversed by :mod:`.traversal`, and by the hybrid grids)
 ----------------------------------------------------------------
@@ -204,7 +204,12 @@ class KdTree(SpatialIndex):
     min_frac : float
         Shallow trees: smallest leaf volume as a fraction of the root's (0.1).
     min_leaf : int
-        Deep trees: cells a split plane leaves on either side, at least (8).
+        Deep trees: cells a split plane leaves on either side, at least (4: on the
+        shared CT / MR volumes 1.4-3.3x the oracle samples against 1.8-5.1x at 8,
+        and faster frames on all of them at 1024^2).
+    apron : bool, optional
+        Classify cells with the one-voxel apron (default: the class's ``apron``,
+        False for the k-d trees; see "Exactness without the apron").
     """
 
     deep: bool = False
@@ -212,7 +217,7 @@ class KdTree(SpatialIndex):
     apron: bool = False
 
     def __init__(self, volume, tf, bins: int = 32, bin_levels: int = 64,
-                 min_frac: float = 0.1, min_leaf: int = 8, apron: bool | None = None) -> None:
+                 min_frac: float = 0.1, min_leaf: int = 4, apron: bool | None = None) -> None:
         super().__init__(volume, tf)
         if apron is not None:
             self.apron = bool(apron)
@@ -358,7 +363,7 @@ class ShallowKdTree(KdTree):
 
 @register_index
 class DeepKdTree(KdTree):
-    """Deep k-d tree down to ``min_leaf`` (default 8) cells; each 8x8 tile of rays
+    """Deep k-d tree down to ``min_leaf`` (default 4) cells; each 8x8 tile of rays
     culls it once with the tile's frustum into a front-to-back leaf list, and its
     rays walk that list (a tile whose frustum meets more than ``tile_leaves``
     leaves traverses the tree per ray).

@@ -44,7 +44,7 @@ __all__ = ["KdListRecord", "KdStackRecord", "EPS", "TILE_LEAVES", "FRUSTUM_TOL",
 #: relative widening of every leaf's ray interval (see the module docstring)
 EPS = 1e-7
 #: leaves a tile's list holds by default; a tile whose frustum meets more traverses per ray
-TILE_LEAVES = 48
+TILE_LEAVES = 96
 #: distance tolerance of the tile frustum test, relative to the coordinates' size
 FRUSTUM_TOL = 1e-6
 
