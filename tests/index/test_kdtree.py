@@ -191,19 +191,21 @@ def test_shallow_halting_rule(blobs, threshold):
     assert idx.n_leaves <= 10
 
 
-def test_deep_min_leaf(blobs):
+@pytest.mark.parametrize("min_leaf", [None, 8])
+def test_deep_min_leaf(blobs, min_leaf):
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
-    idx = sc.build_index(blobs, tf, "kdtree-deep")
-    assert idx.n_leaves > 1
+    idx = sc.build_index(blobs, tf, "kdtree-deep", **({} if min_leaf is None else {"min_leaf": min_leaf}))
+    assert idx.min_leaf == (4 if min_leaf is None else min_leaf) and idx.n_leaves > 1
     for n in range(idx.n_nodes):
         a = idx.node_axis[n]
         box = idx.node_box[n]
-        if a >= 0:  # the plane leaves >= 8 cells of the parent on both sides
+        m = idx.min_leaf
+        if a >= 0:  # the plane leaves >= min_leaf cells of the parent on both sides
             s = idx.node_split[n]
-            assert s - box[a] >= 8 and box[a + 3] - s >= 8
+            assert s - box[a] >= m and box[a + 3] - s >= m
         else:  # a leaf is too small to split, or at least half occupied (full or no plane helped)
             ext = box[3:] - box[:3]
-            assert np.all(ext < 16) or 2 * idx.cells.count(box) >= np.prod(ext)
+            assert np.all(ext < 2 * m) or 2 * idx.cells.count(box) >= np.prod(ext)
 
 
 @pytest.mark.parametrize("name", TREES)

@@ -166,6 +166,28 @@ def _outside(pl, lo, hi, n):
     return nx * (bx - px) + ny * (by - py) + nz * (bz - pz) < -tol * reach
 
 
+@njit(cache=True, inline="always")
+def _push_children(scratch, at, c, left_first):
+    """Push children ``c`` and ``c + 1`` at ``scratch[at]``, the near one last (popped first)."""
+    if left_first:
+        scratch[at] = c + 1
+        scratch[at + 1] = c
+    else:
+        scratch[at] = c
+        scratch[at + 1] = c + 1
+
+
+@njit(cache=True, inline="always")
+def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
+    """:func:`clip_box` of node ``n`` with the ray's inverses ``inv`` (from start_ray), widened."""
+    ox, oy, oz, _, _, _ = ray
+    ix, iy, iz, fx, fy, fz = inv
+    tn, tf = slab(ox, ix, fx, lo[n, 0], hi[n, 0], -math.inf, math.inf)
+    tn, tf = slab(oy, iy, fy, lo[n, 1], hi[n, 1], tn, tf)
+    tn, tf = slab(oz, iz, fz, lo[n, 2], hi[n, 2], tn, tf)
+    return widen(tn, tf, t_lo, t_hi)
+
+
 @overload(start_tile, jit_options={"cache": True}, inline="always")
 def _tile(record, scratch, corners):
     if record_class(record) is not KdStackRecord:
@@ -221,12 +243,7 @@ def _tile(record, scratch, corners):
                 left_first = False
             else:
                 left_first = eye[ax] <= hi[c, ax]
-            if left_first:
-                scratch[base + sp] = c + 1
-                scratch[base + sp + 1] = c
-            else:
-                scratch[base + sp] = c
-                scratch[base + sp + 1] = c + 1
+            _push_children(scratch, base + sp, c, left_first)
             sp += 2
         scratch[0] = count
 
@@ -285,7 +302,8 @@ def _next(record, scratch, ray, state, t_covered):
             # the near child last (popped first): the left child when the ray's
             # direction on the split axis is >= 0.
             j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz = state
-            ox, oy, oz, dx, dy, dz = ray
+            inv = (ix, iy, iz, fx, fy, fz)
+            _, _, _, dx, dy, dz = ray
             lo = record.node_lo
             hi = record.node_hi
             if sp < 0:
@@ -294,10 +312,7 @@ def _next(record, scratch, ray, state, t_covered):
                 while j < count:
                     n = scratch[1 + j]
                     j += 1
-                    tn, tf = slab(ox, ix, fx, lo[n, 0], hi[n, 0], -math.inf, math.inf)
-                    tn, tf = slab(oy, iy, fy, lo[n, 1], hi[n, 1], tn, tf)
-                    tn, tf = slab(oz, iz, fz, lo[n, 2], hi[n, 2], tn, tf)
-                    t0, t1 = widen(tn, tf, t_lo, t_hi)
+                    t0, t1 = _box_interval(ray, inv, lo, hi, n, t_lo, t_hi)
                     if t0 <= t1:
                         return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
                 return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
@@ -305,11 +320,7 @@ def _next(record, scratch, ray, state, t_covered):
             while sp > 0:
                 sp -= 1
                 n = scratch[base + sp]
-                # clip_box's arithmetic, with the ray's inverses from start_ray
-                tn, tf = slab(ox, ix, fx, lo[n, 0], hi[n, 0], -math.inf, math.inf)
-                tn, tf = slab(oy, iy, fy, lo[n, 1], hi[n, 1], tn, tf)
-                tn, tf = slab(oz, iz, fz, lo[n, 2], hi[n, 2], tn, tf)
-                t0, t1 = widen(tn, tf, t_lo, t_hi)
+                t0, t1 = _box_interval(ray, inv, lo, hi, n, t_lo, t_hi)
                 if t0 > t1:
                     continue
                 ax = record.node_axis[n]
@@ -317,12 +328,7 @@ def _next(record, scratch, ray, state, t_covered):
                     return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
                 c = record.node_child[n]
                 d = dx if ax == 0 else (dy if ax == 1 else dz)
-                if d >= 0.0:
-                    scratch[base + sp] = c + 1
-                    scratch[base + sp + 1] = c
-                else:
-                    scratch[base + sp] = c
-                    scratch[base + sp + 1] = c + 1
+                _push_children(scratch, base + sp, c, d >= 0.0)
                 sp += 2
             return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
 
