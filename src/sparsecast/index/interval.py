@@ -9,13 +9,17 @@ processes; a closure factory would recompile in every new process):
 
 ``make_scratch(record)``
     Per-tile scratch (a stack, a leaf box ...), allocated once per 8x8 tile.
-``start_tile(record, scratch, corners)``
+``start_tile(record, scratch, corners, box, planes)``
     Begin an 8x8 tile (optional: records whose class sets ``TILE = True``).
     ``corners`` holds the index-space rays ``(ox, oy, oz, dx, dy, dz)`` of the
-    tile's four corner pixels, ``(x0, y0), (x1, y0), (x1, y1), (x0, y1)``; every
-    ray of the tile lies in their convex hull (ray generation is affine in the
-    pixel), so an index may cull its structure once for the tile's frustum and
-    keep what is left in ``scratch`` (the deep k-d tree's leaf list).
+    tile's four corner pixels, ``(x0, y0), (x1, y0), (x1, y1), (x0, y1)``
+    (:func:`~sparsecast.kernels.camera.tile_corner_rays`); every ray of the tile
+    lies in their convex hull (ray generation is affine in the pixel), so an index
+    may cull its structure once for the tile's frustum and keep what is left in
+    ``scratch`` (the deep k-d tree's leaf list). ``box`` is the frame's index-space
+    clip box ``(x0, y0, z0, x1, y1, z1)`` and ``planes`` its ``(m, 4)`` clip
+    half-spaces ``n . x >= c``: every sample the driver takes lies inside both (up to
+    rounding), so what lies wholly outside them (by a tolerance) may be culled too.
 ``start_ray(record, scratch, ray, t_lo, t_hi) -> state``
     Begin a ray. ``ray`` is the index-space ``(ox, oy, oz, dx, dy, dz)``, the
     parameter ``t`` a world-space distance; ``[t_lo, t_hi]`` (``t_lo >= 0``) is
@@ -76,7 +80,7 @@ def make_scratch(record):  # pragma: no cover - replaced by overloads in jitted 
     raise NotImplementedError("make_scratch is only callable from jitted code")
 
 
-def start_tile(record, scratch, corners):  # pragma: no cover
+def start_tile(record, scratch, corners, box, planes):  # pragma: no cover
     """Per-tile set-up of ``record`` (see the module docstring)."""
     raise NotImplementedError("start_tile is only callable from jitted code")
 
@@ -131,11 +135,11 @@ def _coalesces(record):
 
 
 @overload(start_tile, inline="always")
-def _no_tile(record, scratch, corners):
+def _no_tile(record, scratch, corners, box, planes):
     cls = record_class(record)
     if cls is None or getattr(cls, "TILE", False):
         return None
-    return lambda record, scratch, corners: None
+    return lambda record, scratch, corners, box, planes: None
 
 
 @overload(make_scratch, inline="always")

@@ -40,3 +40,24 @@ def index_space_ray(params, px, py, width, height, origin, inv_spacing):
     oy = (woy - origin[1]) * inv_spacing[1]
     oz = (woz - origin[2]) * inv_spacing[2]
     return ox, oy, oz, wdx * inv_spacing[0], wdy * inv_spacing[1], wdz * inv_spacing[2], wdx, wdy, wdz
+
+
+@njit(cache=True, inline="always")
+def tile_corner_rays(params, x0, x1, y0, y1, width, height, origin, inv_spacing):
+    """Index-space rays ``(ox, oy, oz, dx, dy, dz)`` of a pixel rectangle's four corners.
+
+    The corners are the pixels ``(x0, y0), (x1 - 1, y0), (x1 - 1, y1 - 1), (x0, y1 - 1)``
+    (``x1``, ``y1`` exclusive), in that winding order. Ray generation is affine in the
+    pixel, so every ray of the rectangle lies in the convex hull of these four: what
+    :func:`sparsecast.index.interval.start_tile` culls against.
+
+    Returns
+    -------
+    tuple of 4 tuples of 6 floats
+    """
+    a = index_space_ray(params, x0, y0, width, height, origin, inv_spacing)
+    b = index_space_ray(params, x1 - 1, y0, width, height, origin, inv_spacing)
+    c = index_space_ray(params, x1 - 1, y1 - 1, width, height, origin, inv_spacing)
+    e = index_space_ray(params, x0, y1 - 1, width, height, origin, inv_spacing)
+    return ((a[0], a[1], a[2], a[3], a[4], a[5]), (b[0], b[1], b[2], b[3], b[4], b[5]),
+            (c[0], c[1], c[2], c[3], c[4], c[5]), (e[0], e[1], e[2], e[3], e[4], e[5]))

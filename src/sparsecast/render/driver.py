@@ -35,7 +35,7 @@ from numba import njit
 
 from ..index.interval import coalesces, integrate, make_scratch, next_interval, start_ray, start_tile
 from ..kernels.borrow import borrowed, keep_alive
-from ..kernels.camera import index_space_ray
+from ..kernels.camera import index_space_ray, tile_corner_rays
 from ..kernels.march import cap_sample
 from ..kernels.ray import clip_lattice, clip_planes, entry_face
 from ..kernels.layout import voxel_view
@@ -112,16 +112,11 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     cut_lo = frame.cut_lo
     cut_hi = frame.cut_hi
     x0, x1, y0, y1 = tile_bounds(tile, w, h)
-    # The tile's corner rays, for indices that cull once per tile (interval.start_tile).
-    a0, a1, a2, a3, a4, a5, _, _, _ = index_space_ray(cam, fx0 + x0, fy0 + y0, width, height, origin, inv_spacing)
-    b0, b1, b2, b3, b4, b5, _, _, _ = index_space_ray(cam, fx0 + x1 - 1, fy0 + y0, width, height, origin,
-                                                      inv_spacing)
-    c0, c1, c2, c3, c4, c5, _, _, _ = index_space_ray(cam, fx0 + x1 - 1, fy0 + y1 - 1, width, height, origin,
-                                                      inv_spacing)
-    e0, e1, e2, e3, e4, e5, _, _, _ = index_space_ray(cam, fx0 + x0, fy0 + y1 - 1, width, height, origin,
-                                                      inv_spacing)
-    start_tile(record, scratch, ((a0, a1, a2, a3, a4, a5), (b0, b1, b2, b3, b4, b5),
-                                 (c0, c1, c2, c3, c4, c5), (e0, e1, e2, e3, e4, e5)))
+    # Indices that cull once per tile (interval.start_tile) see the tile's corner rays
+    # and the clip (box and planes); for the others the call compiles to nothing.
+    start_tile(record, scratch,
+               tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
+               (cx0, cy0, cz0, cx1, cy1, cz1), planes)
     for py in range(y0, y1):
         for px in range(x0, x1):
             ox, oy, oz, dx, dy, dz, wdx, wdy, wdz = index_space_ray(

@@ -25,6 +25,13 @@ meets the same leaves in the same order as its own traversal would. The order is
 the per-ray rule when the four corners agree on the sign of the split axis's
 direction (then every ray of the tile does), else the eye's side (perspective:
 the tile's rays share one eye).
+
+Clip culling. Every sample the driver takes lies in the frame's clip box and on the
+kept side of its clip planes (up to the rounding of one ray position), and a sample
+of non-zero opacity lies in an occupied cell of some leaf; so a node wholly outside
+the clip box, or wholly behind one plane, by more than :data:`FRUSTUM_TOL` of the
+coordinates, holds no such sample and leaves the tile's list. The per-ray fallback
+needs no such test: each node's interval is clipped to the ray's ``[t_lo, t_hi]``.
 """
 
 from __future__ import annotations
@@ -167,6 +174,27 @@ def _outside(pl, lo, hi, n):
 
 
 @njit(cache=True, inline="always")
+def _outside_clip(box, planes, tol, lo, hi, n):
+    """Whether box ``n`` lies wholly outside the clip box ``box`` or behind one of
+    ``planes`` (rows ``n . x >= c``), by more than ``tol`` (times a plane's 1-norm)."""
+    x0, y0, z0, x1, y1, z1 = box
+    if hi[n, 0] < x0 - tol or hi[n, 1] < y0 - tol or hi[n, 2] < z0 - tol \
+            or lo[n, 0] > x1 + tol or lo[n, 1] > y1 + tol or lo[n, 2] > z1 + tol:
+        return True
+    for p in range(planes.shape[0]):
+        nx = planes[p, 0]
+        ny = planes[p, 1]
+        nz = planes[p, 2]
+        # The box corner farthest into the kept side.
+        bx = hi[n, 0] if nx > 0.0 else lo[n, 0]
+        by = hi[n, 1] if ny > 0.0 else lo[n, 1]
+        bz = hi[n, 2] if nz > 0.0 else lo[n, 2]
+        if nx * bx + ny * by + nz * bz - planes[p, 3] < -tol * (abs(nx) + abs(ny) + abs(nz)):
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def _push_children(scratch, at, c, left_first):
     """Push children ``c`` and ``c + 1`` at ``scratch[at]``, the near one last (popped first)."""
     if left_first:
@@ -189,11 +217,11 @@ def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
 
 
 @overload(start_tile, jit_options={"cache": True}, inline="always")
-def _tile(record, scratch, corners):
+def _tile(record, scratch, corners, box, planes):
     if record_class(record) is not KdStackRecord:
         return None
 
-    def impl(record, scratch, corners):
+    def impl(record, scratch, corners, box, planes):
         # The tile's leaves front to back, culled by its frustum: scratch[0] is their
         # count (-1: more than tile_leaves, rays traverse the tree themselves),
         # scratch[1:1 + tile_leaves] the leaves' nodes, the rest a stack.
@@ -213,6 +241,8 @@ def _tile(record, scratch, corners):
         p2 = _plane(corners, 2)
         p3 = _plane(corners, 3)
         eye = corners[0]
+        x0, y0, z0, x1, y1, z1 = box
+        ctol = FRUSTUM_TOL * (1.0 + max(abs(x0), abs(y0), abs(z0), abs(x1), abs(y1), abs(z1)))
         base = 1 + cap  # the stack, as offsets into scratch (no slice: a view per call)
         scratch[base] = 0
         sp = 1
@@ -221,7 +251,7 @@ def _tile(record, scratch, corners):
             sp -= 1
             n = scratch[base + sp]
             if _outside(p0, lo, hi, n) or _outside(p1, lo, hi, n) or _outside(p2, lo, hi, n) \
-                    or _outside(p3, lo, hi, n):
+                    or _outside(p3, lo, hi, n) or _outside_clip(box, planes, ctol, lo, hi, n):
                 continue
             ax = axis[n]
             if ax < 0:
