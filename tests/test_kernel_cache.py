@@ -32,7 +32,8 @@ def test_hash_changes_with_an_inlined_helper(tmp_path):
 
 
 def _run(code: str, env: dict) -> str:
-    full = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "SPARSECAST_CACHE_DIR")}
+    full = {k: v for k, v in os.environ.items()
+            if k not in ("NUMBA_CACHE_DIR", "SPARSECAST_CACHE_DIR", "SPARSECAST_KERNEL_FOLDER")}
     full.update(env)
     out = subprocess.run([sys.executable, "-c", code], env=full, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
@@ -51,6 +52,28 @@ def test_numba_uses_the_hashed_folder(tmp_path):
     assert Path(cfg) == folder and Path(configured) == folder
     assert Path(used).is_relative_to(folder)
     assert any(folder.rglob("*.nbi"))  # the kernel's cache index landed there
+
+
+@pytest.mark.parametrize("set_base", [True, False])
+def test_a_subprocess_uses_its_parents_folder(tmp_path, set_base):
+    """A child inherits NUMBA_CACHE_DIR pointing at the parent's kernels-<hash> folder:
+    it must reuse that folder (warm), not nest a cold kernels-<hash> inside it."""
+    code = ("import os, subprocess, sys\n"
+            "from sparsecast import kernel_cache as k\n"
+            "print(k.configure())\n"
+            "child = 'from sparsecast import kernel_cache as k; print(k.configure())'\n"
+            "print(subprocess.run([sys.executable, '-c', child], capture_output=True, text=True,"
+            " check=True).stdout.strip())")
+    env = {"SPARSECAST_CACHE_DIR": str(tmp_path)} if set_base else {"XDG_CACHE_HOME": str(tmp_path)}
+    parent, child = _run(code, env).splitlines()
+    assert Path(parent).name == f"kernels-{kernel_cache.source_hash()}"
+    assert Path(parent).is_relative_to(tmp_path)
+    assert child == parent
+
+
+def test_a_users_numba_cache_dir_is_a_base(tmp_path):
+    out = _run("from sparsecast import kernel_cache as k; print(k.configure())", {"NUMBA_CACHE_DIR": str(tmp_path)})
+    assert Path(out) == tmp_path / f"kernels-{kernel_cache.source_hash()}"
 
 
 def test_off_keeps_numbas_default(tmp_path):

@@ -48,11 +48,22 @@ def source_hash(root: Path | None = None) -> str:
     return h.hexdigest()[:16]
 
 
+#: set beside ``NUMBA_CACHE_DIR`` by :func:`configure`, so that a subprocess knows that
+#: folder for one of ours (already ``kernels-<hash>``), not a base to nest another in
+_OWN_FOLDER = "SPARSECAST_KERNEL_FOLDER"
+
+
 def _base() -> Path | None:
     for var in ("SPARSECAST_CACHE_DIR", "NUMBA_CACHE_DIR"):
         value = os.environ.get(var)
         if value:
-            return None if value.lower() == "off" and var == "SPARSECAST_CACHE_DIR" else Path(value)
+            if var == "SPARSECAST_CACHE_DIR" and value.lower() == "off":
+                return None
+            if var == "NUMBA_CACHE_DIR" and value == os.environ.get(_OWN_FOLDER):
+                # Inherited from a parent's configure(): its base is the folder's parent
+                # (without this, every subprocess compiled into a nested, cold folder).
+                return Path(value).parent
+            return Path(value)
     xdg = os.environ.get("XDG_CACHE_HOME")
     return (Path(xdg) if xdg else Path.home() / ".cache") / "sparsecast"
 
@@ -101,6 +112,7 @@ def configure() -> Path | None:
 
     config.CACHE_DIR = str(folder)
     os.environ["NUMBA_CACHE_DIR"] = str(folder)  # the same folder for subprocesses
+    os.environ[_OWN_FOLDER] = str(folder)
     _tolerate_foreign_indexes()
     _configured = folder
     return folder
