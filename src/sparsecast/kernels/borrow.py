@@ -23,21 +23,35 @@ from numba.extending import intrinsic, overload
 __all__ = ["borrowed", "keep_alive"]
 
 
-@intrinsic
-def _borrow_array(typingctx, arr):
-    if not isinstance(arr, types.Array):
-        return None
-
-    def codegen(context, builder, signature, args):
-        src = context.make_array(arr)(context, builder, value=args[0])
-        out = context.make_array(arr)(context, builder)
+def _borrow_value(context, builder, typ, value):
+    """``value`` of Numba type ``typ`` with every array in it given a null owner."""
+    if isinstance(typ, types.Array):
+        src = context.make_array(typ)(context, builder, value=value)
+        out = context.make_array(typ)(context, builder)
         for name in ("nitems", "itemsize", "data", "shape", "strides"):
             setattr(out, name, getattr(src, name))
         out.meminfo = cgutils.get_null_value(out.meminfo.type)
         out.parent = cgutils.get_null_value(out.parent.type)
         return out._getvalue()
+    if isinstance(typ, types.BaseTuple):
+        for i, member in enumerate(typ):
+            part = builder.extract_value(value, i)
+            value = builder.insert_value(value, _borrow_value(context, builder, member, part), i)
+        return value
+    # Anything else is returned as it is, as a new reference (what a call's result is).
+    context.nrt.incref(builder, typ, value)
+    return value
 
-    return arr(arr), codegen
+
+@intrinsic
+def _borrow(typingctx, x):
+    # One intrinsic for a whole record: the recursion runs in code generation, not as
+    # one inlined call per member (the frame has about 35), each typed and copied by
+    # Numba's inliner: that cost compile time in every driver specialisation.
+    def codegen(context, builder, signature, args):
+        return _borrow_value(context, builder, signature.args[0], args[0])
+
+    return x(x), codegen
 
 
 def borrowed(x):  # pragma: no cover - jitted only
@@ -45,22 +59,9 @@ def borrowed(x):  # pragma: no cover - jitted only
     raise NotImplementedError
 
 
-@overload(borrowed, inline="always")  # impls made by exec: nothing to cache on their own
+@overload(borrowed, inline="always")  # an intrinsic's wrapper: nothing to cache on its own
 def _borrowed(x):
-    if isinstance(x, types.Array):
-        return lambda x: _borrow_array(x)
-    if isinstance(x, types.BaseTuple):
-        n = len(x)
-        parts = ", ".join(f"borrowed(x[{i}])" for i in range(n))
-        if isinstance(x, types.BaseNamedTuple):
-            body = f"return cls({parts})"
-            scope = {"cls": x.instance_class, "borrowed": borrowed}
-        else:
-            body = f"return ({parts}{',' if n == 1 else ''})" if n else "return ()"
-            scope = {"borrowed": borrowed}
-        exec(f"def impl(x):\n    {body}\n", scope)
-        return scope["impl"]
-    return lambda x: x
+    return lambda x: _borrow(x)
 
 
 def keep_alive(x):  # pragma: no cover - jitted only

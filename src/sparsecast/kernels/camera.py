@@ -42,7 +42,7 @@ def index_space_ray(params, px, py, width, height, origin, inv_spacing):
     return ox, oy, oz, wdx * inv_spacing[0], wdy * inv_spacing[1], wdz * inv_spacing[2], wdx, wdy, wdz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def tile_corner_rays(params, x0, x1, y0, y1, width, height, origin, inv_spacing):
     """Index-space rays ``(ox, oy, oz, dx, dy, dz)`` of a pixel rectangle's four corners.
 

@@ -117,7 +117,8 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
     return r + w * cr, g + w * cg, b + w * cb, a + w, t
 
 
-@njit(cache=True, inline="always")
+# Not inlined, as :func:`.march.march_interval`: one compiled copy serves every index.
+@njit(cache=True, error_model="numpy")
 def iso_interval(
     mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
     dt, t0, t1, k_next, k_min, k_max, acc, ert, shading,

@@ -117,7 +117,11 @@ def march_segment(
     return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
 
 
-@njit(cache=True, inline="always")
+# Not inlined (see index.interval, "Inlining"): called once per interval, and its
+# signature names no index record, so one compiled (and cached) copy per sampler and
+# dtype serves every index, where an inlined copy was compiled again in each record's
+# ``integrate``.
+@njit(cache=True, error_model="numpy")
 def march_interval(
     sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,

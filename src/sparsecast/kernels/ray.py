@@ -12,7 +12,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def slab_ordered(o, inv, flat, near, far, t0, t1):
     """Restrict ``[t0, t1]`` to one slab whose planes are given near plane first.
 
@@ -33,7 +33,7 @@ def slab_ordered(o, inv, flat, near, far, t0, t1):
     return max(t0, (near - o) * inv), min(t1, (far - o) * inv)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def slab(o, inv, flat, lo, hi, t0, t1):
     """Restrict ``[t0, t1]`` to the slab ``lo <= o + t d <= hi`` (``inv = 1 / d``)."""
     if inv < 0.0 and not flat:
@@ -49,7 +49,7 @@ def inverse(d):
     return 1.0 / d, False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
     """Parametric interval ``(t_near, t_far)`` of a ray inside an axis-aligned box.
 
@@ -99,7 +99,7 @@ def _k_from_far(t, dt, open_face):
     return int(math.floor(q))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt):
     """Lattice samples of a ray inside a box whose faces may be half-open.
 
@@ -151,7 +151,7 @@ def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, 
     return k_lo, k_hi, t_lo, t_hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi):
     """Restrict a ray's interval and lattice range to the half-spaces of ``planes``.
 

@@ -33,7 +33,7 @@ import math
 
 from numba import njit
 
-from ..index.interval import coalesces, integrate, make_scratch, next_interval, start_ray, start_tile
+from ..index.interval import coalesces, culls_tiles, integrate, make_scratch, next_interval, start_ray, start_tile
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import index_space_ray, tile_corner_rays
 from ..kernels.march import cap_sample
@@ -113,10 +113,12 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     cut_hi = frame.cut_hi
     x0, x1, y0, y1 = tile_bounds(tile, w, h)
     # Indices that cull once per tile (interval.start_tile) see the tile's corner rays
-    # and the clip (box and planes); for the others the call compiles to nothing.
-    start_tile(record, scratch,
-               tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
-               (cx0, cy0, cz0, cx1, cy1, cz1), planes)
+    # and the clip (box and planes); for the others the branch folds away at compile
+    # time, corner rays included.
+    if culls_tiles(record):
+        start_tile(record, scratch,
+                   tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
+                   (cx0, cy0, cz0, cx1, cy1, cz1), planes)
     for py in range(y0, y1):
         for px in range(x0, x1):
             ox, oy, oz, dx, dy, dz, wdx, wdy, wdz = index_space_ray(

@@ -78,7 +78,7 @@ class BihApproxRecord(NamedTuple):
     d_span: float
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def decode_inner(nodes, i, preorder):
     """``(axis, first, second, single, q0, q1)`` of inner node ``i``; ``second`` is -1
     for a single child. See :func:`sparsecast.index.bih.pack.pack_nodes`."""
@@ -100,7 +100,7 @@ def decode_inner(nodes, i, preorder):
     return axis, first, second, single, q0, q1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def node_kind(nodes, i):
     return (nodes[i] >> 62) & 3
 
@@ -219,7 +219,7 @@ def next_leaf(nodes, preorder, frame_lo, frame_step, grow, ro, rinv, rflat, st_n
     return -1, 0.0, 0.0, 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def set_ray(ro, rinv, rflat, ox, oy, oz, dx, dy, dz):
     """Fill the per-ray arrays :func:`next_leaf` reads."""
     ro[0] = ox

@@ -62,7 +62,7 @@ class GridRecord(NamedTuple):
     ncz: int
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def dda_axis(o, d, t, cell, n_cells):
     """Start a DDA on one axis at ray parameter ``t``.
 
@@ -87,7 +87,7 @@ def dda_axis(o, d, t, cell, n_cells):
     return c, 0, math.inf, math.inf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def dda_start(grid, ray, t0, t1):
     """DDA state at ``t0`` for a walk that ends at ``t1``.
 
@@ -100,7 +100,7 @@ def dda_start(grid, ray, t0, t1):
     return (cx, cy, cz, sx, sy, sz, tmx, tmy, tmz, tdx, tdy, tdz, t0, t1, t0 > t1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def dda_next(grid, state):
     """The next run of consecutive non-empty cells: ``(t0, t1, state)``; ``t0 > t1`` at the end."""
     cx, cy, cz, sx, sy, sz, tmx, tmy, tmz, tdx, tdy, tdz, t_enter, t_end, done = state

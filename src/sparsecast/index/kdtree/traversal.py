@@ -101,7 +101,7 @@ class KdStackRecord(NamedTuple):
     tile_leaves: int
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def widen(t_near, t_far, t_lo, t_hi):
     """Leaf interval widened by ``EPS`` (relative to the ray's interval, which is
     finite) and clipped to ``[t_lo, t_hi]``."""
@@ -109,7 +109,7 @@ def widen(t_near, t_far, t_lo, t_hi):
     return max(t_near - e, t_lo), min(t_far + e, t_hi)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     """From position ``j`` of the leaf list, the next leaf the ray meets:
     ``(t0, t1, j_after)``, ``t0 > t1`` when none is left."""
@@ -160,15 +160,19 @@ def _plane(corners, i):
 
 
 @njit(cache=True, inline="always")
+def _far_corner(nx, ny, nz, lo, hi, n):
+    """The corner of box ``n`` farthest along the direction ``(nx, ny, nz)``."""
+    return (hi[n, 0] if nx > 0.0 else lo[n, 0], hi[n, 1] if ny > 0.0 else lo[n, 1],
+            hi[n, 2] if nz > 0.0 else lo[n, 2])
+
+
+@njit(cache=True, inline="always")
 def _outside(pl, lo, hi, n):
     """Whether box ``n`` lies wholly outside the plane ``pl`` (by more than its tolerance)."""
     nx, ny, nz, px, py, pz, tol = pl
     if tol == 0.0:
         return False
-    # The box corner farthest along n.
-    bx = hi[n, 0] if nx > 0.0 else lo[n, 0]
-    by = hi[n, 1] if ny > 0.0 else lo[n, 1]
-    bz = hi[n, 2] if nz > 0.0 else lo[n, 2]
+    bx, by, bz = _far_corner(nx, ny, nz, lo, hi, n)
     reach = 1.0 + max(abs(bx), abs(by), abs(bz))
     return nx * (bx - px) + ny * (by - py) + nz * (bz - pz) < -tol * reach
 
@@ -185,16 +189,13 @@ def _outside_clip(box, planes, tol, lo, hi, n):
         nx = planes[p, 0]
         ny = planes[p, 1]
         nz = planes[p, 2]
-        # The box corner farthest into the kept side.
-        bx = hi[n, 0] if nx > 0.0 else lo[n, 0]
-        by = hi[n, 1] if ny > 0.0 else lo[n, 1]
-        bz = hi[n, 2] if nz > 0.0 else lo[n, 2]
+        bx, by, bz = _far_corner(nx, ny, nz, lo, hi, n)  # the farthest into the kept side
         if nx * bx + ny * by + nz * bz - planes[p, 3] < -tol * (abs(nx) + abs(ny) + abs(nz)):
             return True
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def _push_children(scratch, at, c, left_first):
     """Push children ``c`` and ``c + 1`` at ``scratch[at]``, the near one last (popped first)."""
     if left_first:
@@ -205,7 +206,7 @@ def _push_children(scratch, at, c, left_first):
         scratch[at + 1] = c + 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
     """:func:`clip_box` of node ``n`` with the ray's inverses ``inv`` (from start_ray), widened."""
     ox, oy, oz, _, _, _ = ray
@@ -216,7 +217,8 @@ def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
     return widen(tn, tf, t_lo, t_hi)
 
 
-@overload(start_tile, jit_options={"cache": True}, inline="always")
+# Once per tile, so a plain call (see index.interval, "Inlining").
+@overload(start_tile, jit_options={"cache": True})
 def _tile(record, scratch, corners, box, planes):
     if record_class(record) is not KdStackRecord:
         return None

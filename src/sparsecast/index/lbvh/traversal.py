@@ -57,7 +57,7 @@ class LbvhRecord(NamedTuple):
     box: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def _stack_push(ht, hf, hn, hs, t, tf, node):
     """Insert ``(t, tf, node)`` into the stack of size ``hs``, kept sorted by ``t``
     descending (the top, ``hs - 1``, holds the smallest); returns the new size.
@@ -78,7 +78,7 @@ def _stack_push(ht, hf, hn, hs, t, tf, node):
     return hs + 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
 def _node_interval(box, node, ox, oy, oz, ix, iy, iz, fx, fy, fz, sx, sy, sz):
     """Ray interval ``(t_near, t_far)`` in node ``node``'s box (empty: ``t_near > t_far``).
 
