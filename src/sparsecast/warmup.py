@@ -9,8 +9,10 @@ once, here, makes every later process start from the cache.
 The plan (:func:`plan`) is a list of steps, one per kernel group, each of which runs
 the real code path on a tiny input: per dtype, the brick statistics and, per index,
 a build and an unshaded and a shaded 16x16 frame (the driver specialisation for that
-record type and dtype); the exact BVH and the RBVH builds over a small mesh and a
-point cloud, their camera and free-ray kernels; the particle BIH and its renderer.
+record type and dtype); for the indices ``index="auto"`` picks from, the iso modes,
+bricked storage and label TFs (each its own specialisation); the exact BVH and the
+RBVH builds over a small mesh and a point cloud, their camera and free-ray kernels;
+the particle BIH and its renderer.
 A step that finds its kernels in the cache takes milliseconds.
 """
 
@@ -35,7 +37,7 @@ from .transfer import TransferFunction
 from .volume import SUPPORTED_DTYPES
 
 __all__ = ["compile_kernels", "plan", "CompileStep", "CompileReport", "GROUPS", "DEFAULT_DTYPES",
-           "APPROXIMATE_MODES", "LABEL_INDICES"]
+           "APPROXIMATE_MODES", "AUTO_INDICES", "LABEL_INDICES"]
 
 #: the kernel groups, in plan order (``sparsecast compile --only``)
 GROUPS = ("volume", "surface", "particles")
@@ -49,9 +51,11 @@ DEFAULT_DTYPES = ("uint8", "uint16", "float32")
 APPROXIMATE_MODES = ("bih:mode=single-sample", "bih:mode=multi-sample")
 
 #: the indices ``index="auto"`` picks from (naive, the sparse and the editing index):
-#: label volumes (nearest sampling, a driver specialisation of its own) are compiled for
-#: these by default, for the integer dtypes; ``indices=`` names others
-LABEL_INDICES = ("naive", SPARSE_INDEX, EDITING_INDEX)
+#: label volumes (nearest and smooth sampling, for the integer dtypes), the iso modes and
+#: bricked storage (each a driver specialisation of its own) are compiled for these by
+#: default; ``indices=`` names others
+AUTO_INDICES = ("naive", SPARSE_INDEX, EDITING_INDEX)
+LABEL_INDICES = AUTO_INDICES
 
 #: pixels per side of a warm-up frame
 FRAME = 16
@@ -160,8 +164,9 @@ def plan(
     -------
     list of CompileStep
         Volume steps: per dtype, the brick statistics, then one per index spec, then
-        for integer dtypes a label TF per exact index of :data:`LABEL_INDICES` (or of
-        ``indices``); then the surface steps, then the particles step.
+        per exact index of :data:`AUTO_INDICES` (or of ``indices``) the iso modes, bricked
+        storage and, for integer dtypes, label TFs; then the surface steps, then the
+        particles step.
 
     Raises
     ------
@@ -173,16 +178,21 @@ def plan(
     steps: list[CompileStep] = []
     if "volume" in chosen:
         specs = _index_specs(indices, names[1])
-        label_specs = [s for s in (specs if indices is not None else LABEL_INDICES)
-                       if s in specs and parse_index_spec(s)[1].get("mode", "ess") == "ess"]
+        # Exact indices only: the BIH's approximate modes have no iso or label path.
+        mode_specs = [s for s in (specs if indices is not None else AUTO_INDICES)
+                      if s in specs and parse_index_spec(s)[1].get("mode", "ess") == "ess"]
         for dtype in _dtypes(dtypes, names[0]):
             steps.append(CompileStep("volume", f"volume {dtype}: brick statistics",
                                      _bind(_brick_stats, dtype)))
             steps.extend(CompileStep("volume", f"volume {dtype} {spec}: build, frame", _bind(_volume, dtype, spec))
                          for spec in specs)
-            if dtype.kind in "iu":  # label volumes: integer ids, nearest sampling
-                steps.extend(CompileStep("volume", f"volume {dtype} labels {spec}: build, frame",
-                                         _bind(_labels, dtype, spec)) for spec in label_specs)
+            steps.extend(CompileStep("volume", f"volume {dtype} iso {spec}: iso, iso+dvr frames",
+                                     _bind(_iso, dtype, spec)) for spec in mode_specs)
+            steps.extend(CompileStep("volume", f"volume {dtype} bricked {spec}: frame",
+                                     _bind(_bricked, dtype, spec)) for spec in mode_specs)
+            if dtype.kind in "iu":  # label volumes: integer ids, nearest and smooth sampling
+                steps.extend(CompileStep("volume", f"volume {dtype} labels {spec}: build, frames",
+                                         _bind(_labels, dtype, spec)) for spec in mode_specs)
     if "surface" in chosen:
         steps += [
             CompileStep("surface", "surface BVH: build", _bvh_build),
@@ -267,12 +277,29 @@ def _volume(dtype: np.dtype, spec: str) -> None:
     render(vol, tf, cam, FRAME, FRAME, index=idx, shading=True)  # the renderer's shaded path
 
 
+def _iso(dtype: np.dtype, spec: str) -> None:
+    vol, tf, cam = _tiny(dtype)
+    name, options = parse_index_spec(spec)
+    lo, hi = vol.value_range
+    for mode in ("iso", "iso+dvr"):  # each mode marker is a driver specialisation
+        render(vol, tf, cam, FRAME, FRAME, index=name, mode=mode, iso=0.5 * (lo + hi), **options)
+
+
+def _bricked(dtype: np.dtype, spec: str) -> None:
+    from .storage import BrickedVolume
+
+    vol, tf, cam = _tiny(dtype)
+    bricked = BrickedVolume(vol.data, spacing=vol.spacing, origin=vol.origin)
+    name, options = parse_index_spec(spec)
+    render(bricked, tf, cam, FRAME, FRAME, index=build_index(bricked, tf, name, **options))
+
+
 def _labels(dtype: np.dtype, spec: str) -> None:
-    tf = TransferFunction.labels([1, 2])
     vol = tiny_volume(dtype, (0.0, 2.0), labels=(1, 2))
     name, options = parse_index_spec(spec)
-    idx = build_index(vol, tf, name, **options)
-    render(vol, tf, Camera.orbit(vol, 30, 20), FRAME, FRAME, index=idx)
+    for smooth in (False, True):  # nearest and smooth-label samplers
+        tf = TransferFunction.labels([1, 2], smooth=smooth)
+        render(vol, tf, Camera.orbit(vol, 30, 20), FRAME, FRAME, index=build_index(vol, tf, name, **options))
 
 
 def _bvh_build() -> None:

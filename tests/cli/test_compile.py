@@ -14,7 +14,7 @@ import pytest
 from cli_runner import run_cli
 from sparsecast import available_indices, kernel_cache
 from sparsecast.index.registry import index_class
-from sparsecast.warmup import APPROXIMATE_MODES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, plan
+from sparsecast.warmup import APPROXIMATE_MODES, AUTO_INDICES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, plan
 
 
 def test_full_plan_covers_every_index_dtype_and_group():
@@ -30,24 +30,32 @@ def test_full_plan_covers_every_index_dtype_and_group():
         assert f"volume {dtype}: brick statistics" in labels
         for spec in specs:
             assert f"volume {dtype} {spec}: build, frame" in labels
+        for spec in AUTO_INDICES:  # the iso modes and bricked storage: their own specialisations
+            assert f"volume {dtype} iso {spec}: iso, iso+dvr frames" in labels
+            assert f"volume {dtype} bricked {spec}: frame" in labels
         if dtype.startswith(("uint", "int")):
             for spec in LABEL_INDICES:
-                assert f"volume {dtype} labels {spec}: build, frame" in labels
+                assert f"volume {dtype} labels {spec}: build, frames" in labels
     volume = [s for s in steps if s.group == "volume"]
     integer = [d for d in DEFAULT_DTYPES if d.startswith(("uint", "int"))]
-    assert len(volume) == len(DEFAULT_DTYPES) * (1 + len(specs)) + len(integer) * len(LABEL_INDICES)
+    assert len(volume) == (len(DEFAULT_DTYPES) * (1 + len(specs) + 2 * len(AUTO_INDICES))
+                           + len(integer) * len(LABEL_INDICES))
     assert {s.label for s in plan(dtypes="all") if s.label.endswith("brick statistics")} == {
         f"volume {d}: brick statistics" for d in ("uint8", "uint16", "int16", "float32", "float64")}
 
 
 def test_plan_subsets():
     steps = plan(dtypes=["float32"], indices=["grid-pc:cell=8"], groups=["volume"])
-    assert [s.label for s in steps] == ["volume float32: brick statistics", "volume float32 grid-pc:cell=8: build, frame"]
-    # Label TFs (nearest sampling) for integer dtypes and the exact indices asked for.
+    assert [s.label for s in steps] == ["volume float32: brick statistics", "volume float32 grid-pc:cell=8: build, frame",
+                                        "volume float32 iso grid-pc:cell=8: iso, iso+dvr frames",
+                                        "volume float32 bricked grid-pc:cell=8: frame"]
+    # Iso, bricked and (integer dtypes) label TFs for the exact indices asked for only.
     steps = plan(dtypes=["uint16"], indices=["lbvh", "bih:mode=multi-sample"], groups=["volume"])
     assert [s.label for s in steps] == ["volume uint16: brick statistics", "volume uint16 lbvh: build, frame",
                                         "volume uint16 bih:mode=multi-sample: build, frame",
-                                        "volume uint16 labels lbvh: build, frame"]
+                                        "volume uint16 iso lbvh: iso, iso+dvr frames",
+                                        "volume uint16 bricked lbvh: frame",
+                                        "volume uint16 labels lbvh: build, frames"]
     assert {s.group for s in plan(groups=["surface", "particles"])} == {"surface", "particles"}
 
 
@@ -82,11 +90,11 @@ def _sparsecast(cache: Path, *args: str) -> str:
 
 
 def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path):
-    """A subset (one dtype, one index: two steps) in a subprocess with its own cache folder."""
+    """A subset (one dtype, one index: four steps) in a subprocess with its own cache folder."""
     args = ("compile", "--only", "volume", "--dtype", "float32", "--index", "naive")
     cache = tmp_path / "cache"
     first = _sparsecast(cache, *args)
-    m = re.search(r"compiled 2 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s", first)
+    m = re.search(r"compiled 4 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s", first)
     assert m, first
     assert float(m.group(2)) > 0
     folder = cache / f"kernels-{kernel_cache.source_hash()}"
@@ -101,6 +109,10 @@ def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path)
     vol = tmp_path / "vol.npy"
     np.save(vol, np.random.default_rng(1).random((20, 18, 16)).astype(np.float32))
     line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "-o", str(tmp_path / "a.png"))
+    assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
+    # ... and so does an isosurface of it.
+    line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "--mode", "iso",
+                       "--iso", "0.5", "-o", str(tmp_path / "b.png"))
     assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
 
 
