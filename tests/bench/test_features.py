@@ -14,6 +14,7 @@ def test_features_section_records_every_case_and_variant():
     renders = [r for r in recs if r.get("phase") == "render"]
     cases = {(r["case"], r["variant"]) for r in renders}
     assert cases == {("labels", "all"), ("labels", "half"), ("clip", "unclipped"), ("clip", "half-box"),
+                     ("clip", "half-plane"),
                      ("iso", "naive")} | {("iso", i) for i in features.ISO_INDICES}
     for r in renders:
         assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"]
@@ -23,6 +24,7 @@ def test_features_section_records_every_case_and_variant():
     # Hiding the big labels and clipping away half take fewer samples (the point of the case).
     assert by["labels", "half"]["samples"] < by["labels", "all"]["samples"]
     assert by["clip", "half-box"]["samples"] < by["clip", "unclipped"]["samples"]
+    assert by["clip", "half-plane"]["samples"] < by["clip", "unclipped"]["samples"]
     assert all(by["iso", i]["samples"] < by["iso", "naive"]["samples"] for i in features.ISO_INDICES)
     assert {r["variant"] for r in recs if r.get("phase") == "rebuild"} == {"all", "half"}
 
