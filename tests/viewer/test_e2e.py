@@ -178,6 +178,74 @@ def test_dragging_a_clip_box_handle_moves_that_face(driver, server):
     assert not errors, errors
 
 
+def test_clip_plane_rows_and_handles(driver, server):
+    """Add plane: a row and a cut in the picture (no index rebuild); its centre handle drags
+    the plane along its normal (the offset follows, the handle stays under the pointer), its
+    tip handle tilts the normal; flip, the checkbox and remove change the frame; the add
+    button stops at 6 planes, and "whole volume" removes them all."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    driver.get(server.url)
+    wait_for(driver, f"return {IDLE};", 90, "the first full frame")
+    full = driver.execute_script(CANVAS)
+    add = driver.find_element(By.ID, "plane-add")
+    st = _changed_after(driver, "adding a plane", add.click)
+    assert len(st["planes"]) == 1 and st["planes"][0]["enabled"] and not st["lastStatus"]["rebuilt"]
+    plane0 = st["planes"][0]["plane"]
+    assert plane0[:3] == [0.5, 0.5, 0.5] and sorted(abs(v) for v in plane0[3:]) == [0, 0, 1]
+    rows = driver.find_elements(By.CSS_SELECTOR, "#plane-list .plane-row")
+    assert len(rows) == 1
+    offset = rows[0].find_element(By.CSS_SELECTOR, ".plane-offset-value")
+    assert float(offset.get_attribute("value")) == pytest.approx(0, abs=1e-6)
+
+    view = driver.find_element(By.ID, "view")
+    w, h = view.size["width"], view.size["height"]
+    ic = driver.execute_script("return window.sparsecastViewer.planeHandleIndex(0, 'centre');")
+    it = driver.execute_script("return window.sparsecastViewer.planeHandleIndex(0, 'tip');")
+    pc, pt = (driver.execute_script(f"return window.sparsecastViewer.handlePixel({i});") for i in (ic, it))
+    assert pc and pt and driver.execute_script(OVERLAY_ALPHA, *pc) > 0
+    # Drag the centre a third of the way to the tip: along the normal's image direction.
+    dx, dy = (pt[0] - pc[0]) / 3, (pt[1] - pc[1]) / 3
+
+    def drag(p, dx, dy):
+        (ActionChains(driver).move_to_element_with_offset(view, round(p[0] - w / 2), round(p[1] - h / 2))
+         .click_and_hold().move_by_offset(round(dx / 2), round(dy / 2)).move_by_offset(round(dx / 2), round(dy / 2))
+         .release().perform())
+
+    az0 = st["camera"]["azimuth"]
+    st = _changed_after(driver, "dragging the plane's centre", lambda: drag(pc, dx, dy))
+    plane1 = st["planes"][0]["plane"]
+    assert plane1[3:] == plane0[3:] and plane1[:3] != plane0[:3] and st["camera"]["azimuth"] == az0
+    assert float(offset.get_attribute("value")) > 0  # moved the way the normal points
+    pc1 = driver.execute_script(f"return window.sparsecastViewer.handlePixel({ic});")
+    assert abs(pc1[0] - (pc[0] + dx)) < 2.5 and abs(pc1[1] - (pc[1] + dy)) < 2.5
+
+    pt1 = driver.execute_script(f"return window.sparsecastViewer.handlePixel({it});")
+    st = _changed_after(driver, "tilting the plane", lambda: drag(pt1, -(pt1[1] - pc1[1]) / 4, (pt1[0] - pc1[0]) / 4))
+    n = st["planes"][0]["plane"][3:]
+    assert n != plane0[3:] and sum(v * v for v in n) == pytest.approx(1)
+    st = _changed_after(driver, "flipping the plane", rows[0].find_element(By.CSS_SELECTOR, ".plane-flip").click)
+    assert st["planes"][0]["plane"][3:] == pytest.approx([-v for v in n])
+    st = _changed_after(driver, "disabling the plane", rows[0].find_element(By.CSS_SELECTOR, ".plane-on").click)
+    assert driver.execute_script(CANVAS) == full and not st["planes"][0]["enabled"]
+    assert driver.execute_script(f"return window.sparsecastViewer.planeHandleIndex(0, 'centre');") == -1
+    rows[0].find_element(By.CSS_SELECTOR, ".plane-on").click()
+    wait_for(driver, f"return {IDLE};", 30, "a frame with the plane back")
+
+    for _ in range(5):
+        add.click()
+    assert len(driver.find_elements(By.CSS_SELECTOR, "#plane-list .plane-row")) == 6 and not add.is_enabled()
+    driver.find_elements(By.CSS_SELECTOR, "#plane-list .plane-remove")[-1].click()
+    assert len(driver.find_elements(By.CSS_SELECTOR, "#plane-list .plane-row")) == 5 and add.is_enabled()
+    wait_for(driver, f"return {IDLE};", 30, "a frame with five planes")
+    st = _changed_after(driver, "whole volume", driver.find_element(By.ID, "clip-reset").click)
+    assert st["planes"] == [] and not driver.find_elements(By.CSS_SELECTOR, "#plane-list .plane-row")
+    assert driver.execute_script(CANVAS) == full
+    errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    assert not errors, errors
+
+
 def _series_volume():
     """Four steps of a blob field, each step's blobs shifted: every step looks different."""
     import numpy as np

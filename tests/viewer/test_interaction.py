@@ -306,3 +306,332 @@ def test_the_overlay_outlines_the_clip_box_the_session_renders():
         got = [cols.min(), cols.max() + 1, rows.min(), rows.max() + 1]
         want = [pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()]
         np.testing.assert_allclose(got, want, atol=1.0)
+
+
+# --- clip planes: their cut of the box, offsets, handles, drags and tilts ------------------
+
+def _plane_world(bounds, plane):
+    """(point, unit normal) in world units of a message plane [px, py, pz, nx, ny, nz]."""
+    import numpy as np
+
+    lo, hi = (np.asarray(b, float) for b in bounds)
+    n = np.asarray(plane[3:], float)
+    return lo + np.asarray(plane[:3], float) * (hi - lo), n / np.linalg.norm(n)
+
+
+BOUNDS = [[-3.0, 2.0, 5.0], [17.0, 23.0, 11.3]]  # the anisotropic box of _cameras' volume
+
+
+def _random_planes(n, seed):
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    out = [[0.5, 0.5, 0.5, 1, 0, 0], [0.2, 0.9, 0.4, 0, -1, 0], [0.5, 0.5, 0.5, 1, 1, 1]]
+    for _ in range(n):
+        out.append([*rng.uniform(0, 1, 3).tolist(), *rng.normal(size=3).tolist()])
+    return out
+
+
+def test_plane_box_polygon_is_the_planes_convex_cut_of_the_box():
+    """Vertices on the plane and on the box's surface, convex and counter-clockwise seen
+    from the normal's side, and the polygon's area equals the area of the plane's points
+    that lie in the box (counted on a grid in the plane with numpy)."""
+    import numpy as np
+
+    lo, hi = (np.array(b) for b in BOUNDS)
+    tol = 1e-9 * np.linalg.norm(hi - lo)
+    planes = _random_planes(9, 4)
+    polys = js(f"{json.dumps(planes)}.map((p) => ui.planeBoxPolygon({BOUNDS[0]}, {BOUNDS[1]},"
+               f" ui.fracToWorld({json.dumps(BOUNDS)}, p.slice(0, 3)), p.slice(3)))")
+    for plane, poly in zip(planes, polys):
+        p, n = _plane_world(BOUNDS, plane)
+        q = np.array(poly)
+        assert 3 <= len(q) <= 6, (plane, poly)
+        np.testing.assert_allclose((q - p) @ n, 0, atol=tol)
+        assert np.all(q >= lo - tol) and np.all(q <= hi + tol)
+        assert np.all(np.min(np.minimum(np.abs(q - lo), np.abs(q - hi)), axis=1) < tol)  # on a face
+        e = np.roll(q, -1, axis=0) - q
+        turns = np.cross(e, np.roll(e, -1, axis=0)) @ n
+        assert np.all(turns > 0), turns  # convex, counter-clockwise about +n
+        area = 0.5 * np.sum(np.cross(q - q[0], np.roll(q, -1, axis=0) - q[0]) @ n)
+        # Grid over the plane, centred at the plane point nearest the box centre.
+        u = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        c = (lo + hi) / 2
+        c = c - ((c - p) @ n) * n
+        r, m = 0.5 * np.linalg.norm(hi - lo), 500
+        g = (np.arange(m) + 0.5) / m * 2 * r - r
+        pts = c + g[:, None, None] * u + g[None, :, None] * v
+        inside = np.all((pts >= lo) & (pts <= hi), axis=-1).sum()
+        assert area == pytest.approx(inside * (2 * r / m) ** 2, rel=0.02)
+    # A plane through a face gives that face whichever way its normal points; one beside the box, nothing.
+    for sign in (1, -1):
+        face = js(f"ui.planeBoxPolygon({BOUNDS[0]}, {BOUNDS[1]}, {BOUNDS[1]}, [{sign}, 0, 0])")
+        assert sorted(map(tuple, face)) == sorted((17.0, y, z) for y in (2.0, 23.0) for z in (5.0, 11.3))
+    assert js(f"ui.planeBoxPolygon({BOUNDS[0]}, {BOUNDS[1]}, [18, 2, 5], [1, 0, 0.1])") == []
+
+
+def test_plane_offsets_sweep_the_box_and_keep_the_point_inside():
+    import numpy as np
+
+    lo, hi = (np.array(b) for b in BOUNDS)
+    corners = np.array([[(lo, hi)[k >> j & 1][j] for j in range(3)] for k in range(8)])
+    for plane in _random_planes(6, 7):
+        p, n = _plane_world(BOUNDS, plane)
+        h = js(f"ui.planeHalfRange({json.dumps(BOUNDS)}, {plane[3:]})")
+        assert h == pytest.approx(np.max((corners - (lo + hi) / 2) @ n))
+        s0 = js(f"ui.planeOffset({json.dumps(BOUNDS)}, {plane})")
+        assert s0 == pytest.approx((p - (lo + hi) / 2) @ n)
+        for s in (-1.5 * h, -h, -0.6 * h, 0.0, 0.3 * h, 0.99 * h, h, 2 * h):
+            got = js(f"ui.planeAtOffset({json.dumps(BOUNDS)}, {plane}, {s})")
+            q, m = _plane_world(BOUNDS, got)
+            np.testing.assert_allclose(m, n, atol=1e-12)  # same unit normal
+            assert all(0 <= f <= 1 for f in got[:3]), got
+            assert (q - (lo + hi) / 2) @ n == pytest.approx(np.clip(s, -h, h), abs=1e-9)
+            # The point slides along the normal while that stays in the box.
+            slid = p + (np.clip(s, -h, h) - s0) * n
+            if np.all((slid - lo) / (hi - lo) >= 0) and np.all((slid - lo) / (hi - lo) <= 1):
+                np.testing.assert_allclose(q, slid, atol=1e-9)
+    # Full offset: the corner farthest along the normal; an axis normal keeps the point on the axis.
+    got = js(f"ui.planeAtOffset({json.dumps(BOUNDS)}, [0.5, 0.5, 0.5, 1, -2, 0.5], 1e9)")
+    assert got[:3] == [1, 0, 1]
+    assert js(f"ui.planeAtOffset({json.dumps(BOUNDS)}, [0.9, 0.2, 0.5, 0, 0, -1], 2.0)")[:3] == \
+        pytest.approx([0.9, 0.2, 0.5 - 2.0 / 6.3])
+
+
+def test_new_plane_faces_away_from_the_camera_along_the_nearest_axis():
+    import numpy as np
+
+    box = [[0.2, 0.0, 0.4], [0.6, 1.0, 0.8]]
+    for name, (vol, cam) in _cameras().items():
+        lo, hi = vol.bounds
+        fc = json.dumps(_frame_camera(cam, 64, 64))
+        bounds = json.dumps([lo.tolist(), hi.tolist()])
+        got = js(f"ui.newPlane({fc}, {bounds}, {json.dumps(box)})")
+        assert got[:3] == pytest.approx([0.4, 0.5, 0.6])
+        c = lo + np.array(got[:3]) * (hi - lo)
+        view = c - cam.eye if cam.projection == "perspective" else cam.basis()[0]
+        j = int(np.argmax(np.abs(view)))
+        want = np.zeros(3)
+        want[j] = np.sign(view[j])
+        assert got[3:] == want.tolist(), name
+    assert js("ui.newPlane(null, [[0, 0, 0], [1, 1, 1]], [[0, 0, 0], [1, 1, 1]])") == [0.5, 0.5, 0.5, 1, 0, 0]
+
+
+def test_clip_message_sends_the_enabled_planes():
+    rows = [{"plane": [0.5, 0.5, 0.5, 1, 0, 0], "enabled": True}, {"plane": [0.1, 0.2, 0.3, 0, 1, 0], "enabled": False},
+            {"plane": [0.4, 0.5, 0.6, 0, 0, -1], "enabled": True}]
+    msg = js(f"ui.clipMessage([[0, 0, 0], [1, 0.5, 1]], {json.dumps(rows)}, 1, 6)")
+    assert msg == {"box": [[0, 0, 0], [1, 0.5, 1]], "planes": [rows[0]["plane"], rows[2]["plane"]], "cap": True}
+    assert js(f"ui.clipMessage([[0, 0, 0], [1, 1, 1]], {json.dumps(rows)}, false, 1)")["planes"] == [rows[0]["plane"]]
+
+
+def _handle_px(cam, bounds, plane, w, h, which="centre"):
+    import numpy as np
+
+    p, n = _plane_world(bounds, plane)
+    if which == "tip":
+        p = p + js("ui.PLANE_TIP_FRACTION") * np.linalg.norm(np.subtract(bounds[1], bounds[0])) * n
+    return np.array(_python_pixel(cam, p, w, h))
+
+
+@pytest.mark.parametrize("name", ["perspective", "perspective-panned", "orthographic"])
+def test_dragging_a_planes_centre_moves_it_along_its_normal_under_the_pointer(name):
+    """As for box faces: along the normal's image direction the plane follows the pointer
+    (the re-projected centre lands under it); across it nothing moves; the normal stays."""
+    import numpy as np
+
+    vol, cam = _cameras()[name]
+    w = h = 96
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    plane = [0.45, 0.5, 0.55, 0.6, -0.5, 0.62]
+    p, n = _plane_world(bounds, plane)
+    sweep = 2 * js(f"ui.planeHalfRange({json.dumps(bounds)}, {plane[3:]})")
+    moved = plane[:3] + 0.05 * sweep * n / (hi - lo)
+    step = _handle_px(cam, bounds, [*moved, *plane[3:]], w, h) - _handle_px(cam, bounds, plane, w, h)
+    assert np.linalg.norm(step) > 2
+    fc = json.dumps(_frame_camera(cam, w, h))
+    s0 = js(f"ui.planeOffset({json.dumps(bounds)}, {plane})")
+    for k in (0.5, 1.0, 2.0, -1.5):
+        d = k * step
+        new = js(f"ui.planeDrag({fc}, {json.dumps(bounds)}, {plane}, {d[0]}, {d[1]}, {w}, {h})")
+        assert new[3:] == plane[3:]
+        s1 = js(f"ui.planeOffset({json.dumps(bounds)}, {new})")
+        assert np.sign(s1 - s0) == np.sign(k)
+        np.testing.assert_allclose(_handle_px(cam, bounds, new, w, h), _handle_px(cam, bounds, plane, w, h) + d,
+                                   atol=1e-6)
+        across = d + 0.6 * np.array([-step[1], step[0]])
+        again = js(f"ui.planeDrag({fc}, {json.dumps(bounds)}, {plane}, {across[0]}, {across[1]}, {w}, {h})")
+        assert again == pytest.approx(new, abs=1e-9)
+
+
+def test_plane_drags_stop_at_the_volume_box_and_recentre():
+    import numpy as np
+
+    vol, cam = _cameras()["perspective"]
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    fc = json.dumps(_frame_camera(cam, 96, 96))
+    plane = [0.5, 0.4, 0.5, 1.0, 0.8, -0.3]
+    s = np.array(js(f"ui.planeAxisPx({fc}, {json.dumps(bounds)}, {plane}, 96, 96)"))
+    for k in (4.0, -4.0):  # four whole sweeps either way
+        new = js(f"ui.planeDrag({fc}, {json.dumps(bounds)}, {plane}, {k * s[0]}, {k * s[1]}, 96, 96)")
+        f = np.array(new[:3])
+        assert np.all(f >= 0) and np.all(f <= 1) and np.any((f < 1e-9) | (f > 1 - 1e-9)), f
+        # on the normal's line through the start point
+        p, n = _plane_world(bounds, plane)
+        q, _ = _plane_world(bounds, new)
+        np.testing.assert_allclose(np.cross(q - p, n), 0, atol=1e-9)
+        # Recentred on release: the same plane, its point back inside the box.
+        r = js(f"ui.planeRecentre({json.dumps(bounds)}, {new})")
+        q2, _ = _plane_world(bounds, r)
+        assert (q2 - q) @ n == pytest.approx(0, abs=1e-9) and r[3:] == new[3:]
+        assert all(0 < t < 1 for t in r[:3]), r
+    inside = [0.3, 0.6, 0.5, 1, 0, 0]
+    assert js(f"ui.planeRecentre({json.dumps(bounds)}, {inside})") == inside
+
+
+def test_a_plane_seen_head_on_does_not_move():
+    import numpy as np
+
+    import sparsecast as sc
+
+    vol, _ = _cameras()["perspective"]
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    n = np.array([0.3, -0.4, 0.866])
+    cam = sc.Camera.look_at(vol.center + 80 * n, vol.center, up=(0, 1, 0))
+    fc = json.dumps(_frame_camera(cam, 96, 96))
+    plane = [0.5, 0.5, 0.5, *n.tolist()]
+    px = js(f"ui.planeAxisPx({fc}, {json.dumps(bounds)}, {plane}, 96, 96)")
+    assert np.hypot(*px) < js("ui.MIN_AXIS_PX")
+    assert js(f"ui.planeDrag({fc}, {json.dumps(bounds)}, {plane}, 30, -40, 96, 96)") == plane
+    side = [0.5, 0.5, 0.5, 1, 0, 0]  # seen from the side: it moves
+    assert js(f"ui.planeDrag({fc}, {json.dumps(bounds)}, {side}, 30, 0, 96, 96)") != side
+
+
+def _pointer_ray(fc, x, y, w, h):
+    """Origin and unit direction of the ray through image position (x, y), from the frame
+    camera's definition (session.frame_camera)."""
+    import numpy as np
+
+    u, v = x / w * 2 - 1, 1 - y / h * 2
+    eye, fwd, right, up = (np.array(fc[k]) for k in ("eye", "forward", "right", "up"))
+    if fc["perspective"]:
+        d = fwd + u * right + v * up
+        return eye, d / np.linalg.norm(d)
+    return eye + u * right + v * up, fwd
+
+
+@pytest.mark.parametrize("name", ["perspective", "perspective-panned", "orthographic", "orthographic-look-at"])
+def test_tilting_a_plane_puts_its_tip_under_the_pointer(name):
+    """The tip handle follows the pointer on the sphere about the centre: unit normal, the
+    point unchanged; where the pointer's ray meets the sphere the tip re-projects under the
+    pointer, on the half of the sphere it started on; where it misses, the normal is
+    perpendicular to that ray (the tip on the sphere's outline) and points the way the
+    pointer went on screen."""
+    import numpy as np
+
+    vol, cam = _cameras()[name]
+    w = h = 96
+    lo, hi = vol.bounds
+    bounds = [lo.tolist(), hi.tolist()]
+    frame = _frame_camera(cam, w, h)
+    fc = json.dumps(frame)
+    length = js("ui.PLANE_TIP_FRACTION") * np.linalg.norm(hi - lo)
+    forward = cam.basis()[0]
+    hits = misses = 0
+    for n0 in ([0.2, 0.9, -0.3], [-0.7, 0.1, 0.5], (-forward + 0.3 * cam.basis()[1]).tolist(),
+               (forward + 0.2 * cam.basis()[2]).tolist()):
+        plane = [0.4, 0.55, 0.5, *n0]
+        c, m0 = _plane_world(bounds, plane)
+        tip0 = _handle_px(cam, bounds, plane, w, h, "tip")
+        centre = _handle_px(cam, bounds, plane, w, h)
+        near0 = m0 @ _pointer_ray(frame, *tip0, w, h)[1] < 0
+        out = tip0 - centre
+        out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else np.array([1.0, 0.0])
+        for d in (np.array([6.0, 0.0]), np.array([0.0, -9.0]), np.array([-5.0, 4.0]), 40 * out, 200 * out):
+            new = js(f"ui.planeTilt({fc}, {json.dumps(bounds)}, {plane}, {d[0]}, {d[1]}, {w}, {h})")
+            assert new[:3] == plane[:3] and np.linalg.norm(new[3:]) == pytest.approx(1)
+            _, m = _plane_world(bounds, new)
+            o, ray = _pointer_ray(frame, *(tip0 + d), w, h)
+            if np.linalg.norm(np.cross(c - o, ray)) < length:  # the ray meets the sphere
+                hits += 1
+                np.testing.assert_allclose(_handle_px(cam, bounds, new, w, h, "tip"), tip0 + d, atol=1e-6)
+                assert (m @ ray < 0) == near0
+            else:
+                misses += 1
+                assert m @ ray == pytest.approx(0, abs=1e-9)
+                moved = _handle_px(cam, bounds, new, w, h, "tip") - centre
+                assert moved @ (tip0 + d - centre) > 0.9 * np.linalg.norm(moved) * np.linalg.norm(tip0 + d - centre)
+    assert hits >= 10 and misses >= 2
+
+
+def test_the_pages_planes_render_as_render_does_and_the_overlay_outlines_the_cut():
+    """End to end without a browser: planes made with the page's functions (add plane,
+    an offset, a tilt, a flip, one row disabled) go through clipMessage into a render
+    message the server parses; the session's frame equals ``sc.render`` with those planes
+    in world units; and for an opaque box cut by one plane, the kept corners and the
+    projected cut polygon bound the rendered footprint to a pixel."""
+    import numpy as np
+
+    import sparsecast as sc
+    from sparsecast.transfer import PRESETS
+    from sparsecast.viewer.messages import parse_message
+    from sparsecast.viewer.session import Session, ViewerData, tf_from_spec, viewer_indices
+
+    # Fine voxels: near the polygon's corners the kept part is a thin wedge that a ray
+    # crosses in a short chord, which a coarse sample spacing may step over.
+    vol = sc.Volume(np.ones((72, 60, 48), np.float32), spacing=(1 / 3, 1.3 / 3, 0.3), origin=(5.0, -2.0, 1.0))
+    data = ViewerData.create(vol, "viridis", index="kdtree-deep")
+    s = Session(data)
+    w, h = 64, 56
+    opaque = {"points": [[0, 1, 1, 1, 1], [1, 1, 1, 1, 1]], "colormap": None, "value_range": [0, 2]}
+    base = {"type": "render", "width": w, "height": h, "tf": opaque,
+            "camera": {"azimuth": 35.0, "elevation": 25.0, "zoom": 1.0}}
+    _, st = s.render_frame(s.update(parse_message(json.dumps({**base, "seq": 1}), indices=viewer_indices(),
+                                                  presets=PRESETS)))
+    fc, bounds = json.dumps(st["camera"]), json.dumps(data.hello()["volume"]["bounds"])
+    box = [[0.0, 0.1, 0.0], [1.0, 1.0, 0.9]]
+    rows = js(f"""(() => {{
+        const b = {bounds}, cam = {fc};
+        let a = ui.newPlane(cam, b, {box});
+        a = ui.planeAtOffset(b, a, 0.15 * ui.planeHalfRange(b, a.slice(3)));
+        a = ui.planeTilt(cam, b, a, 7, -4, {w}, {h});
+        let c = ui.planeAtOffset(b, [0.5, 0.5, 0.5, 0, 1, 0], 3.0);
+        c = [...c.slice(0, 3), ...c.slice(3).map((v) => -v)];  // flip
+        return [{{plane: a, enabled: true}}, {{plane: [0.5, 0.5, 0.5, 1, 0, 0], enabled: false}},
+                {{plane: c, enabled: true}}];
+    }})()""")
+    clip = js(f"ui.clipMessage({box}, {json.dumps(rows)}, false, 6)")
+    assert len(clip["planes"]) == 2
+    _, st = s.render_frame(s.update(parse_message(json.dumps({**base, "seq": 2, "clip": clip}),
+                                                  indices=viewer_indices(), presets=PRESETS)))
+    lo, hi = vol.bounds
+    cam = sc.Camera.orbit(vol, 35.0, 25.0)
+    world = [_plane_world([lo, hi], p) for p in clip["planes"]]
+    ref = sc.render(vol, tf_from_spec(s.tf), cam, w, h, background="black",
+                    clip_box=(lo + np.array(box[0]) * (hi - lo), lo + np.array(box[1]) * (hi - lo)),
+                    clip_planes=[(p, tuple(n)) for p, n in world])
+    np.testing.assert_allclose(s.last_rgba, ref.rgba, atol=1e-5)
+
+    # One plane over the whole box: the footprint is the projection of the kept part.
+    plane = clip["planes"][0]
+    _, st = s.render_frame(s.update(parse_message(json.dumps({**base, "seq": 3, "clip": {"planes": [plane]}}),
+                                                  indices=viewer_indices(), presets=PRESETS)))
+    rows_, cols = np.nonzero(s.last_rgba[..., :3].max(axis=-1) > 1e-3)
+    assert len(rows_) > 100
+    p, n = _plane_world([lo, hi], plane)
+    corners = np.array([[(lo, hi)[k >> j & 1][j] for j in range(3)] for k in range(8)])
+    kept = corners[(corners - p) @ n > 0].tolist()
+    pts = np.array(js(f"(() => {{ const b = {bounds}, pl = {plane};"
+                      f"const poly = ui.planeBoxPolygon(b[0], b[1], ui.fracToWorld(b, pl.slice(0, 3)), pl.slice(3));"
+                      f"return poly.concat({json.dumps(kept)}).map((q) => ui.projectPoint({fc}, q, {w}, {h})); }})()"))
+    got = [cols.min(), cols.max() + 1, rows_.min(), rows_.max() + 1]
+    want = [pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()]
+    np.testing.assert_allclose(got, want, atol=1.0)
+    full = [_python_pixel(cam, q, w, h) for q in corners]
+    assert min(q[0] for q in full) < want[0] - 2 or max(q[0] for q in full) > want[1] + 2 or \
+        min(q[1] for q in full) < want[2] - 2 or max(q[1] for q in full) > want[3] + 2  # the plane cut the outline

@@ -63,6 +63,43 @@ def test_clip_box_and_planes_equal_render_and_never_rebuild(blobs):
     np.testing.assert_allclose(img, full, atol=ATOL)
 
 
+@pytest.mark.parametrize("index", ["grid-pc", "kdtree-deep"])
+def test_clip_planes_in_the_pages_message_equal_render(blobs, index):
+    """A render message as the page sends it (clip planes as [px, py, pz, nx, ny, nz] rows:
+    points in box fractions, normals in world axes of any length) gives the frame
+    ``sc.render`` draws with those planes in world units; kdtree-deep also drops the tiles'
+    leaves behind the planes, which must not change the picture."""
+    import json
+
+    from sparsecast.transfer import PRESETS
+    from sparsecast.viewer.messages import parse_message
+    from sparsecast.viewer.session import viewer_indices
+
+    planes = [[0.5, 0.4, 0.6, 0.3, -1.0, 0.2], [0.6, 0.5, 0.5, -2.0, 0.6, 0.0]]
+    msg = {"type": "render", "seq": 3, "width": W, "height": H, "index": {"name": index, "cell": None},
+           "camera": {"azimuth": 40.0, "elevation": 25.0, "zoom": 1.1},
+           "clip": {"box": [[0.05, 0.0, 0.1], [1.0, 0.9, 1.0]], "planes": planes, "cap": False}}
+    req = parse_message(json.dumps(msg), indices=viewer_indices(), presets=PRESETS)
+    data = ViewerData.create(blobs, "viridis", index=index)
+    s = Session(data)
+    _, st = s.render_frame(s.update(req))
+    lo, hi = blobs.bounds
+    ext = hi - lo
+    box = (lo + np.array(msg["clip"]["box"][0]) * ext, lo + np.array(msg["clip"]["box"][1]) * ext)
+    world = [(lo + np.array(p[:3]) * ext, tuple(p[3:])) for p in planes]
+    ref = sc.render(blobs, tf_from_spec(data.tf), camera(blobs, s), W, H, background="black", index=index,
+                    clip_box=box, clip_planes=world)
+    np.testing.assert_allclose(s.last_rgba, ref.rgba, atol=ATOL)
+    unclipped = sc.render(blobs, tf_from_spec(data.tf), camera(blobs, s), W, H, background="black", index=index,
+                          clip_box=box)
+    assert np.abs(ref.rgba - unclipped.rgba).max() > 0.05  # the planes cut something visible
+    # Each plane on its own cuts differently: neither is a no-op in the pair.
+    for p in world:
+        one = sc.render(blobs, tf_from_spec(data.tf), camera(blobs, s), W, H, background="black", index=index,
+                        clip_box=box, clip_planes=[p])
+        assert np.abs(one.rgba - ref.rgba).max() > 0.05
+
+
 @pytest.mark.parametrize("mode", ["iso", "iso+dvr"])
 def test_isosurfaces_equal_render_and_rebuild_only_for_a_new_isovalue(blobs, mode):
     data = ViewerData.create(blobs, "viridis", index="grid-pc")

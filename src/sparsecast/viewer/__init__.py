@@ -1,6 +1,8 @@
 """Interactive viewer: a local web page that orbits a volume and edits its TF live,
-with render mode and isovalue, clip box, a label table (label volumes) and a time
-slider (series).
+with render mode and isovalue, a clip box (sliders and face handles over the image),
+up to 6 clip planes (rows with enable / normal / flip / remove / offset, and centre and
+normal-tip handles over the image), a label table (label volumes) and a time slider
+(series).
 
 ``sparsecast view FILE`` (the CLI) or :func:`show` (Jupyter). The web stack
 (Starlette, uvicorn) is an optional dependency: ``pip install "sparsecast[view]"``.
@@ -8,7 +10,9 @@ It is imported only when a server is created.
 
 Modules: :mod:`.messages` (validation of client messages), :mod:`.session` (per-client
 state, index cache, frame rendering), :mod:`.server` (Starlette app, uvicorn runner),
-``static/`` (the page: HTML, JS, CSS; no build step, no external requests).
+``static/`` (the page: HTML, JS, CSS; no build step, no external requests;
+``static/interaction.js`` holds every pointer and overlay mapping as pure functions,
+tested under node).
 """
 
 from __future__ import annotations

@@ -38,7 +38,9 @@ Server -> client (built in :mod:`.session`, nothing to validate here): the ``hel
 (volume, with its world ``bounds`` that clip fractions refer to; lists; the starting
 state) and, before each frame's image, its status, whose ``camera`` is the camera that
 frame was rendered with (:func:`~sparsecast.viewer.session.frame_camera`): the page
-projects the clip box and its drag handles with it.
+projects the clip box, its clip planes and their drag handles with it. The page keeps
+its plane rows (a disabled one included) and sends the enabled ones as ``clip.planes``
+(``clipMessage`` in ``static/interaction.js``).
 """
 
 from __future__ import annotations

@@ -44,6 +44,7 @@ from ..volume import Volume
 from .messages import (
     CELL_SIZES,
     FULL_CLIP,
+    MAX_CLIP_PLANES,
     MAX_ISOVALUES,
     MAX_TF_POINTS,
     MODES,
@@ -325,7 +326,7 @@ class ViewerData:
             "colormaps": {p: colormap_samples(p) for p in PRESETS},
             "cells": list(CELL_SIZES),
             "limits": {"max_points": MAX_TF_POINTS, "preview": 256, "full": 512, "max_side": 1024, "min_side": 16,
-                       "max_iso": MAX_ISOVALUES},
+                       "max_iso": MAX_ISOVALUES, "max_clip_planes": MAX_CLIP_PLANES},
             "state": {
                 "camera": {"azimuth": self.camera.azimuth, "elevation": self.camera.elevation,
                            "zoom": self.camera.zoom, "pan": list(self.camera.pan)},

@@ -1,5 +1,6 @@
 // sparsecast viewer: pure mappings from pointer motion and sliders to camera, TF, clip and isovalues,
-// and the projection of the clip box onto the image (its drag handles).
+// the projection of the clip box onto the image (its drag handles), and the clip planes (their
+// cut of the box, centre and normal handles, drags and offsets).
 // No DOM here, so tests can run it under node (tests/viewer/test_interaction.py).
 "use strict";
 (function (root) {
@@ -184,9 +185,209 @@
     return side === "lo" ? [Math.max(0, Math.min(hi, f)), hi] : [lo, Math.min(1, Math.max(lo, f))];
   }
 
+  // --- clip planes -------------------------------------------------------------------------
+  // A plane is the render message's [px, py, pz, nx, ny, nz]: a point in fractions of the
+  // volume box and a normal in world axes (any length); the renderer keeps the side the
+  // normal points to (session.clip_world). The maps below work in world units with the
+  // unit normal n: the plane is {x : n . (x - p) = 0} with p the point in world units, and
+  // its offset is n . (p - c), c the volume box's centre, so offsets from -h to h (h the
+  // box's half extent along n, planeHalfRange) sweep the plane through the whole box.
+  const add3 = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+  const scale3 = (a, k) => [a[0] * k, a[1] * k, a[2] * k];
+  const cross3 = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  const norm3 = (a) => Math.hypot(a[0], a[1], a[2]);
+  const unit3 = (a) => { const n = norm3(a); return n > 0 ? scale3(a, 1 / n) : null; };
+  const boxCentre = (bounds) => [0, 1, 2].map((j) => 0.5 * (bounds[0][j] + bounds[1][j]));
+  const boxDiagonal = (bounds) => norm3(sub(bounds[1], bounds[0]));
+  const clamp01 = (t) => Math.max(0, Math.min(1, t));
+
+  // World point of box fractions f, and the fractions of world point p.
+  function fracToWorld(bounds, f) { return f.map((t, j) => bounds[0][j] + t * (bounds[1][j] - bounds[0][j])); }
+  function worldToFrac(bounds, p) { return p.map((v, j) => (v - bounds[0][j]) / (bounds[1][j] - bounds[0][j])); }
+
+  // Half extent h of the volume box along `normal` (its support function): the plane
+  // with that normal meets the box for offsets in [-h, h].
+  function planeHalfRange(bounds, normal) {
+    const n = unit3(normal);
+    return 0.5 * [0, 1, 2].reduce((s, j) => s + Math.abs(n[j]) * (bounds[1][j] - bounds[0][j]), 0);
+  }
+
+  // Offset (world units) of `plane` along its unit normal from the volume box's centre.
+  function planeOffset(bounds, plane) {
+    return dot(unit3(plane.slice(3)), sub(fracToWorld(bounds, plane.slice(0, 3)), boxCentre(bounds)));
+  }
+
+  // The point (fractions) of the plane with unit normal n at offset s (|s| <= h) on the
+  // box's diagonal that runs from the corner least along n through the centre to the
+  // corner farthest along n (an axis with no normal component stays at its middle, so an
+  // axis-aligned plane's point is the centre of its cut): inside the box for every s,
+  // continuous in s, f_j = 1/2 + (s / 2h) sign(n_j).
+  function centredPoint(bounds, n, s) {
+    const h = planeHalfRange(bounds, n);
+    const r = h > 0 ? Math.max(-1, Math.min(1, s / h)) : 0;
+    return n.map((v) => clamp01(0.5 + 0.5 * r * (Math.abs(v) > 1e-9 ? Math.sign(v) : 0)));
+  }
+
+  const inBox = (f) => f.every((t) => t >= 0 && t <= 1);
+
+  // `plane` moved along its normal to offset s (clamped to [-h, h]), its normal made unit:
+  // the point slides along the normal when that keeps it inside the box (a typed offset
+  // moves the centre handle straight along the normal), else it goes to centredPoint.
+  function planeAtOffset(bounds, plane, s) {
+    const n = unit3(plane.slice(3)), h = planeHalfRange(bounds, n);
+    const t = Math.max(-h, Math.min(h, s));
+    const p = add3(fracToWorld(bounds, plane.slice(0, 3)), scale3(n, t - planeOffset(bounds, plane)));
+    const f = worldToFrac(bounds, p);
+    return [...(inBox(f) ? f : centredPoint(bounds, n, t)), ...n];
+  }
+
+  // `plane` with its point moved within the plane to centredPoint when it lies on the box's
+  // surface (a drag stopped there): the next drag along the normal can go on from there.
+  function planeRecentre(bounds, plane) {
+    const f = plane.slice(0, 3);
+    if (f.every((t) => t > 1e-9 && t < 1 - 1e-9)) return plane.slice();
+    const n = unit3(plane.slice(3));
+    return [...centredPoint(bounds, n, planeOffset(bounds, plane)), ...plane.slice(3)];
+  }
+
+  // The plane "add plane" creates: through the centre of the clip box `box` (fractions),
+  // its normal the world axis closest to the view direction there (towards the box from
+  // the eye), signed so the renderer keeps the far side: the new plane cuts away the half
+  // of the clip box facing the camera and shows its inside. An axis, not the view
+  // direction itself, because a plane seen exactly head-on has no draggable centre handle
+  // (planeAxisPx) and its offset would be a depth, while an axis-aligned plane is a slice
+  // of the volume whose offset reads as a position along that axis. cam null: +x.
+  function newPlane(cam, bounds, box) {
+    const f = [0, 1, 2].map((j) => 0.5 * (box[0][j] + box[1][j]));
+    const n = [0, 0, 0];
+    if (!cam) { n[0] = 1; return [...f, ...n]; }
+    const d = cam.perspective ? sub(fracToWorld(bounds, f), cam.eye) : cam.forward;
+    let j = 0;
+    for (let i = 1; i < 3; i++) if (Math.abs(d[i]) > Math.abs(d[j])) j = i;
+    n[j] = d[j] < 0 ? -1 : 1;
+    return [...f, ...n];
+  }
+
+  // The polygon where the plane through world point `point` with normal `normal` cuts the
+  // world box [lo, hi]: its vertices (world points), convex, in counter-clockwise order
+  // seen from the side the normal points to; [] when the plane misses the box. Vertices are
+  // the box corners on the plane and the crossings of the edges whose ends lie strictly on
+  // opposite sides (a tolerance of 1e-12 of the diagonal decides "on"), so a plane through
+  // a face gives that face, whichever way its normal points.
+  function planeBoxPolygon(lo, hi, point, normal) {
+    const n = unit3(normal);
+    const eps = 1e-12 * norm3(sub(hi, lo));
+    const pts = [];
+    const push = (q) => { if (!pts.some((r) => norm3(sub(q, r)) <= 1e3 * eps)) pts.push(q); };
+    for (const [a, b] of boxEdges(lo, hi)) {
+      const da = dot(n, sub(a, point)), db = dot(n, sub(b, point));
+      const sa = da > eps ? 1 : da < -eps ? -1 : 0, sb = db > eps ? 1 : db < -eps ? -1 : 0;
+      if (sa === 0) push(a);
+      if (sb === 0) push(b);
+      if (sa * sb < 0) push(lerp3(a, b, da / (da - db)));
+    }
+    if (pts.length < 3) return pts.length ? pts : [];
+    const m = scale3(pts.reduce(add3, [0, 0, 0]), 1 / pts.length);
+    // u, v, n right-handed: increasing angle from u towards v is counter-clockwise seen from +n.
+    const k = Math.abs(n[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0];
+    const u = unit3(cross3(k, n)), v = cross3(n, u);
+    const ang = (q) => Math.atan2(dot(sub(q, m), v), dot(sub(q, m), u));
+    return pts.map((q) => [ang(q), q]).sort((x, y) => x[0] - y[0]).map((e) => e[1]);
+  }
+
+  // Length of the normal handle's stick, as a fraction of the volume box's diagonal.
+  const PLANE_TIP_FRACTION = 0.2;
+
+  // A plane's two handles in world units: `centre` (its point), `tip` (centre + L n, the
+  // end of the normal's stick, L = PLANE_TIP_FRACTION of the box diagonal), `normal` (unit)
+  // and `length` L.
+  function planeHandles(bounds, plane) {
+    const centre = fracToWorld(bounds, plane.slice(0, 3)), normal = unit3(plane.slice(3));
+    const length = PLANE_TIP_FRACTION * boxDiagonal(bounds);
+    return { centre, tip: add3(centre, scale3(normal, length)), normal, length };
+  }
+
+  // Image pixels [px, py] the centre handle moves when the plane sweeps the whole box along
+  // its normal (2h world units), the derivative at the handle like faceAxisPx; null when
+  // the handle is behind the eye. Shorter than MIN_AXIS_PX: the normal is seen nearly
+  // head-on and the centre handle is not draggable.
+  function planeAxisPx(cam, bounds, plane, width, height) {
+    const { centre, normal } = planeHandles(bounds, plane);
+    const step = 1e-3, span = 2 * planeHalfRange(bounds, normal);
+    const p0 = projectPoint(cam, centre, width, height);
+    const p1 = projectPoint(cam, add3(centre, scale3(normal, step * span)), width, height);
+    if (!p0 || !p1) return null;
+    return [(p1[0] - p0[0]) / step, (p1[1] - p0[1]) / step];
+  }
+
+  // `plane` after dragging its centre handle by (dx, dy) image pixels from where the drag
+  // started (plane and cam as they were then): faceDrag's rule along the normal. The motion's
+  // component along the normal's image direction moves the plane, the handle staying under
+  // the pointer (the point goes where the ray through the projected pointer meets the
+  // normal's line through the centre); motion across it does nothing. The point stops where
+  // that line leaves the volume box (the server refuses points outside it). A normal seen
+  // nearly head-on (planeAxisPx under MIN_AXIS_PX) does not move the plane.
+  function planeDrag(cam, bounds, plane, dx, dy, width, height) {
+    const s = planeAxisPx(cam, bounds, plane, width, height);
+    const n2 = s ? s[0] * s[0] + s[1] * s[1] : 0;
+    if (!(n2 >= MIN_AXIS_PX * MIN_AXIS_PX)) return plane.slice();
+    const { centre: c, normal } = planeHandles(bounds, plane);
+    const a = scale3(normal, 2 * planeHalfRange(bounds, normal));  // t = 1: one whole sweep
+    const p0 = projectPoint(cam, c, width, height);
+    const k = (dx * s[0] + dy * s[1]) / n2;
+    const [o, d] = pixelRay(cam, p0[0] + k * s[0], p0[1] + k * s[1], width, height);
+    const w0 = sub(c, o), A = dot(a, a), B = dot(a, d), C = dot(d, d), D = dot(a, w0), E = dot(d, w0);
+    const den = A * C - B * B;
+    let t = den > 1e-12 * A * C ? (B * E - C * D) / den : k;
+    if (cam.perspective && depth(cam, add3(c, scale3(a, t))) <= 0) t = k;  // beyond the horizon
+    // The interval of t that keeps c + t a inside the box [lo, hi].
+    let tlo = -Infinity, thi = Infinity;
+    for (let j = 0; j < 3; j++) {
+      if (Math.abs(a[j]) < 1e-15 * norm3(a)) continue;
+      const t1 = (bounds[0][j] - c[j]) / a[j], t2 = (bounds[1][j] - c[j]) / a[j];
+      tlo = Math.max(tlo, Math.min(t1, t2)); thi = Math.min(thi, Math.max(t1, t2));
+    }
+    t = Math.max(Math.min(tlo, 0), Math.min(Math.max(thi, 0), t));
+    const f = worldToFrac(bounds, add3(c, scale3(a, t))).map(clamp01);
+    return [...f, ...plane.slice(3)];
+  }
+
+  // `plane` after dragging its normal's tip handle by (dx, dy) image pixels from where the
+  // drag started: the tip follows the pointer on the sphere of radius L (planeHandles)
+  // about the centre, which stays put, and the normal is the unit vector from the centre to
+  // the tip. The ray through the pointer meets the sphere twice; the tip stays on the half
+  // it started on: the near one when the tip faced the eye at the start ((tip - centre) .
+  // ray < 0), the far one otherwise. A ray that misses the sphere puts the tip on the
+  // sphere's outline (the point of the sphere closest to the ray), where the two halves
+  // meet, so the normal turns continuously to lie across the view; to go on to the other
+  // half, start a new drag there or flip the plane. The tip is exactly under the pointer
+  // whenever the ray meets the sphere.
+  function planeTilt(cam, bounds, plane, dx, dy, width, height) {
+    const { centre: c, tip, length: L } = planeHandles(bounds, plane);
+    const q0 = projectPoint(cam, tip, width, height);
+    if (!q0) return plane.slice();
+    const d0 = pixelRay(cam, q0[0], q0[1], width, height)[1];
+    const near = dot(sub(tip, c), d0) < 0;
+    const [o, d] = pixelRay(cam, q0[0] + dx, q0[1] + dy, width, height);
+    const oc = sub(o, c), A = dot(d, d), B = dot(d, oc), C = dot(oc, oc) - L * L;
+    const disc = B * B - A * C;
+    const r = disc > 0 ? (-B + (near ? -1 : 1) * Math.sqrt(disc)) / A : -B / A;
+    const n = unit3(sub(add3(o, scale3(d, r)), c));
+    return n ? [...plane.slice(0, 3), ...n] : plane.slice();
+  }
+
+  // The render message's `clip` for the page's clip state: box and cap as they are, and
+  // the planes of the enabled rows only (rows are {plane, enabled}), at most `max`.
+  function clipMessage(box, rows, cap, max) {
+    const planes = rows.filter((r) => r.enabled).map((r) => r.plane.slice()).slice(0, max);
+    return { box: box.map((c) => c.slice()), planes, cap: Boolean(cap) };
+  }
+
   const api = { orbitDrag, opacityAt, sliderValue, sliderPos, clipPair, ORBIT_DEG_PER_PX, SNAP_PX, SLIDER_STEPS,
                 depth, projectPoint, clipSegment, clipBoxWorld, boxEdges, faceHandles, pickHandle, faceAxisPx,
-                pixelRay, faceDrag, MIN_AXIS_PX };
+                pixelRay, faceDrag, MIN_AXIS_PX,
+                fracToWorld, worldToFrac, planeHalfRange, planeOffset, planeAtOffset, planeRecentre, newPlane,
+                planeBoxPolygon, planeHandles, planeAxisPx, planeDrag, planeTilt, clipMessage, PLANE_TIP_FRACTION };
   if (typeof module !== "undefined" && module.exports) module.exports = api;
   else root.sparsecastInteraction = api;
 })(typeof window !== "undefined" ? window : globalThis);

@@ -10,6 +10,8 @@
   const IDLE_MS = 150, PICK_PX = 8;
   // Clip-box handles: radius drawn and radius picked (canvas px); one colour per axis (x, y, z).
   const HANDLE_R = 6, HANDLE_PICK_PX = 10, AXIS_COLOURS = ["#ff6b6b", "#7ee787", "#79c0ff"];
+  // Clip planes: one colour per row (at most hello.limits.max_clip_planes rows).
+  const PLANE_COLOURS = ["#f0883e", "#d2a8ff", "#56d4dd", "#ffdf5d", "#ff7eb6", "#a5d6ff"];
 
   const st = {
     ws: null, hello: null, camera: null, tf: null, index: null,
@@ -21,7 +23,10 @@
     cmapColors: {},
     // the camera of the frame on screen (its status's `camera`): the clip-box overlay is
     // drawn with it, so it stays on the picture while a new frame is on its way
-    frameCamera: null, handlePx: [], activeHandle: -1,
+    frameCamera: null, handlePx: [], handleInfo: [], activeHandle: -1,
+    // clip planes: rows {plane: [px, py, pz, nx, ny, nz] (point in box fractions, unit
+    // normal in world axes), enabled, colour}; the render message carries the enabled ones
+    planes: [],
   };
   // Exposed for tests and the console.
   window.sparsecastViewer = st;
@@ -89,8 +94,9 @@
                            value_range: h.state.tf.value_range.slice() } : null;
     st.index = Object.assign({}, h.state.index);
     st.mode = h.state.mode; st.iso = h.state.iso.slice(); st.time = h.state.time;
-    st.clip = { box: h.state.clip.box.map((c) => c.slice()), planes: h.state.clip.planes.map((p) => p.slice()),
-                cap: Boolean(h.state.clip.cap) };
+    st.clip = { box: h.state.clip.box.map((c) => c.slice()), cap: Boolean(h.state.clip.cap) };
+    st.planes = [];
+    for (const p of h.state.clip.planes) addPlaneRow([...p.slice(0, 3), ...unitNormal(p.slice(3))], true);
     $("tf-box").hidden = !st.tf;
     $("volume-name").textContent = `${h.volume.name} ${h.volume.dims.join("x")} ${h.volume.dtype}`;
     const cm = $("colormap"); cm.innerHTML = "";
@@ -138,14 +144,16 @@
     $("elevation").value = st.camera.elevation.toFixed(1);
     $("zoom").value = st.camera.zoom.toFixed(2);
     $("cell").disabled = !st.index.name.startsWith("grid");
+    syncPlaneRows();
     drawOverlay();
   }
 
-  // --- clip-box overlay: the box's edges and a handle per face, projected with the camera
-  // of the frame shown (interaction.js does the maths) ---------------------------------
+  // --- clip overlay: the box's edges and a handle per face, then each enabled plane's cut of
+  // the volume box and its two handles, projected with the camera of the frame shown
+  // (interaction.js does the maths) -------------------------------------------------------
   function drawOverlay() {
     octx.clearRect(0, 0, overlay.width, overlay.height);
-    st.handlePx = [];
+    st.handlePx = []; st.handleInfo = [];
     const cam = st.frameCamera;
     if (!$("clip-show").checked || !cam || !st.clip || !st.hello) return;
     const bounds = st.hello.volume.bounds, W = overlay.width, H = overlay.height;
@@ -176,6 +184,49 @@
       octx.globalAlpha = 1; octx.strokeStyle = i === st.activeHandle ? "#fff" : "#000"; octx.lineWidth = 1.5;
       octx.stroke();
     });
+    st.handleInfo = ui.faceHandles(lo, hi).map((f) => ({ kind: "face", axis: f.axis, side: f.side }));
+    st.planes.forEach((row, k) => { if (row.enabled) drawPlane(cam, bounds, row, k, near); });
+  }
+
+  // One clip plane: the polygon where it cuts the volume box (filled faintly, outlined in
+  // the row's colour), a stick along the normal from the centre handle (a dot: drag moves the
+  // plane along its normal) to the tip handle (a square: drag tilts the normal). A normal
+  // seen nearly head-on has no centre handle (planeDrag would ignore it).
+  function drawPlane(cam, bounds, row, k, near) {
+    const W = overlay.width, H = overlay.height, pl = row.plane;
+    const vis = (p) => (!cam.perspective || ui.depth(cam, p) > near ? ui.projectPoint(cam, p, W, H) : null);
+    const poly = ui.planeBoxPolygon(bounds[0], bounds[1], ui.fracToWorld(bounds, pl.slice(0, 3)), pl.slice(3));
+    octx.strokeStyle = row.colour; octx.fillStyle = row.colour; octx.lineWidth = 1.5;
+    const px = poly.map(vis);
+    octx.beginPath();
+    if (px.length && px.every(Boolean)) {
+      px.forEach((p, i) => (i ? octx.lineTo(p[0], p[1]) : octx.moveTo(p[0], p[1])));
+      octx.closePath();
+      octx.globalAlpha = 0.12; octx.fill();
+    } else {
+      // Partly behind a perspective eye: the edges cut at the near depth, not filled.
+      poly.forEach((a, i) => {
+        const seg = ui.clipSegment(cam, a, poly[(i + 1) % poly.length], near);
+        const pa = seg && ui.projectPoint(cam, seg[0], W, H), pb = seg && ui.projectPoint(cam, seg[1], W, H);
+        if (pa && pb) { octx.moveTo(pa[0], pa[1]); octx.lineTo(pb[0], pb[1]); }
+      });
+    }
+    octx.globalAlpha = 0.9; octx.stroke(); octx.globalAlpha = 1;
+    const hd = ui.planeHandles(bounds, pl), pc = vis(hd.centre), pt = vis(hd.tip);
+    if (pc && pt) { octx.beginPath(); octx.moveTo(pc[0], pc[1]); octx.lineTo(pt[0], pt[1]); octx.stroke(); }
+    const s = pc && ui.planeAxisPx(cam, bounds, pl, W, H);
+    const centre = s && Math.hypot(s[0], s[1]) >= ui.MIN_AXIS_PX ? pc : null;
+    for (const [kind, p] of [["centre", centre], ["tip", pt]]) {
+      const i = st.handlePx.length;
+      st.handlePx.push(p); st.handleInfo.push({ kind, k });
+      if (!p) continue;
+      octx.beginPath();
+      if (kind === "centre") octx.arc(p[0], p[1], HANDLE_R, 0, 2 * Math.PI);
+      else octx.rect(p[0] - HANDLE_R + 1, p[1] - HANDLE_R + 1, 2 * HANDLE_R - 2, 2 * HANDLE_R - 2);
+      octx.fillStyle = row.colour; octx.globalAlpha = i === st.activeHandle ? 1 : 0.8; octx.fill();
+      octx.globalAlpha = 1; octx.strokeStyle = i === st.activeHandle ? "#fff" : "#000"; octx.lineWidth = 1.5;
+      octx.stroke();
+    }
   }
   // Canvas pixel of a pointer event on the view (the canvas may be drawn scaled).
   function viewXY(e) {
@@ -183,11 +234,14 @@
     return [(e.clientX - r.left) * (view.width / r.width), (e.clientY - r.top) * (view.height / r.height)];
   }
   const handleAt = (e) => { const [x, y] = viewXY(e); return ui.pickHandle(st.handlePx, x, y, HANDLE_PICK_PX); };
-  // CSS pixel (relative to the view's top-left) of handle i (x-lo, x-hi, y-lo, ...), or null: for tests.
+  // CSS pixel (relative to the view's top-left) of handle i (x-lo, x-hi, y-lo, ..., z-hi, then
+  // per enabled plane its centre and its tip), or null: for tests.
   st.handlePixel = (i) => {
     const p = st.handlePx[i], r = view.getBoundingClientRect();
     return p ? [p[0] * r.width / view.width, p[1] * r.height / view.height] : null;
   };
+  // Index into handlePx of plane row k's "centre" or "tip" handle, or -1 (disabled row): for tests.
+  st.planeHandleIndex = (k, kind) => st.handleInfo.findIndex((h) => h.k === k && h.kind === kind);
 
   // --- requests: coalesced per animation frame; previews while interacting ----------
   function request(preview, all) {
@@ -207,7 +261,8 @@
     const msg = {
       type: "render", seq: st.seq, preview: st.preview,
       width: view.width, height: view.height,
-      camera: st.camera, index: st.index, mode: st.mode, iso: st.iso, clip: st.clip,
+      camera: st.camera, index: st.index, mode: st.mode, iso: st.iso,
+      clip: ui.clipMessage(st.clip.box, st.planes, st.clip.cap, maxPlanes()),
     };
     if (st.tf) msg.tf = st.tf;
     if (st.hello.series) msg.time = st.time;
@@ -223,16 +278,19 @@
   // --- orbit / zoom -------------------------------------------------------------------
   let drag = null, hdrag = null;
   // Left drag orbits; shift-drag, right or middle drag pans; a left press on a clip-box
-  // handle drags that face instead.
+  // handle drags that face instead, on a plane's centre handle moves that plane along its
+  // normal, on its tip handle tilts the normal.
   view.addEventListener("contextmenu", (e) => e.preventDefault());
   view.addEventListener("pointerdown", (e) => {
     const hit = e.button === 0 && !e.shiftKey ? handleAt(e) : -1;
     if (hit >= 0) {
       const [x, y] = viewXY(e);
-      // Handles come in faceHandles' order: x-lo, x-hi, y-lo, y-hi, z-lo, z-hi. The drag maps
-      // pointer motion with the box and camera it started from (moving back puts the face back).
-      hdrag = { x, y, axis: hit >> 1, side: hit & 1 ? "hi" : "lo", box: st.clip.box.map((c) => c.slice()),
-                cam: st.frameCamera };
+      // Face handles come in faceHandles' order (x-lo, x-hi, ..., z-hi), then the planes'. The
+      // drag maps pointer motion with the box, plane and camera it started from (moving back
+      // puts the face or plane back).
+      const info = st.handleInfo[hit];
+      hdrag = Object.assign({ x, y, box: st.clip.box.map((c) => c.slice()), cam: st.frameCamera }, info,
+                            info.kind === "face" ? {} : { plane: st.planes[info.k].plane.slice() });
       st.activeHandle = hit;
       view.setPointerCapture(e.pointerId);
       view.classList.add("dragging-handle");
@@ -248,9 +306,14 @@
   view.addEventListener("pointermove", (e) => {
     if (hdrag) {
       const [x, y] = viewXY(e);
-      const [lo, hi] = ui.faceDrag(hdrag.cam, st.hello.volume.bounds, hdrag.box, hdrag.axis, hdrag.side,
-                                   x - hdrag.x, y - hdrag.y, view.width, view.height);
-      st.clip.box[0][hdrag.axis] = lo; st.clip.box[1][hdrag.axis] = hi;
+      const b = st.hello.volume.bounds, dx = x - hdrag.x, dy = y - hdrag.y, W = view.width, H = view.height;
+      if (hdrag.kind === "face") {
+        const [lo, hi] = ui.faceDrag(hdrag.cam, b, hdrag.box, hdrag.axis, hdrag.side, dx, dy, W, H);
+        st.clip.box[0][hdrag.axis] = lo; st.clip.box[1][hdrag.axis] = hi;
+      } else {
+        const move = hdrag.kind === "centre" ? ui.planeDrag : ui.planeTilt;
+        st.planes[hdrag.k].plane = move(hdrag.cam, b, hdrag.plane, dx, dy, W, H);
+      }
       // Like the clip sliders: preview frames while dragging; a clip change never rebuilds the index.
       syncInputs();
       request(true);
@@ -272,7 +335,12 @@
   });
   const endDrag = () => {
     if (hdrag) {
-      hdrag = null; st.activeHandle = -1; view.classList.remove("dragging-handle"); drawOverlay(); request(false);
+      // A plane drag that stopped on the box's surface: its point moves (within the plane) back
+      // inside, so the next drag along the normal can go on.
+      if (hdrag.kind !== "face" && st.planes[hdrag.k]) {
+        st.planes[hdrag.k].plane = ui.planeRecentre(st.hello.volume.bounds, st.planes[hdrag.k].plane);
+      }
+      hdrag = null; st.activeHandle = -1; view.classList.remove("dragging-handle"); syncInputs(); request(false);
     }
     if (drag) { drag = null; view.classList.remove("dragging"); request(false); }
   };
@@ -460,7 +528,91 @@
   $("clip-cap").addEventListener("change", () => { st.clip.cap = $("clip-cap").checked; request(false); });
   $("clip-show").addEventListener("change", drawOverlay);
   $("clip-reset").addEventListener("click", () => {
-    st.clip = { box: [[0, 0, 0], [1, 1, 1]], planes: [], cap: st.clip.cap }; syncInputs(); request(false);
+    st.clip = { box: [[0, 0, 0], [1, 1, 1]], cap: st.clip.cap }; st.planes = [];
+    buildPlaneRows(); syncInputs(); request(false);
+  });
+
+  // --- clip planes: a row per plane (enable, normal, flip, remove, offset along the normal) --
+  const maxPlanes = () => (st.hello && st.hello.limits.max_clip_planes) || 6;
+  const unitNormal = (n) => { const l = Math.hypot(...n); return n.map((v) => v / l); };
+  const fmt = (v) => (Math.abs(v) < 5e-4 ? 0 : v).toFixed(3);  // no "-0.000"
+  function addPlaneRow(plane, enabled) {
+    const used = new Set(st.planes.map((r) => r.colour));
+    const colour = PLANE_COLOURS.find((c) => !used.has(c)) || PLANE_COLOURS[st.planes.length % PLANE_COLOURS.length];
+    st.planes.push({ plane, enabled, colour });
+  }
+  function buildPlaneRows() {
+    const list = $("plane-list"); list.innerHTML = "";
+    st.planes.forEach((row, k) => {
+      const div = document.createElement("div"); div.className = "plane-row"; div.style.borderLeftColor = row.colour;
+      const mk = (tag, props) => Object.assign(document.createElement(tag), props);
+      const on = mk("input", { type: "checkbox", className: "plane-on", checked: row.enabled, title: "clip with this plane" });
+      on.addEventListener("change", () => { row.enabled = on.checked; syncInputs(); request(false); });
+      const normal = mk("input", { type: "text", className: "plane-normal", spellcheck: false,
+                                   title: "normal nx, ny, nz (world axes; the side it points to is kept)" });
+      normal.addEventListener("change", () => {
+        const v = normal.value.split(/[\s,]+/).filter(Boolean).map(Number);
+        if (v.length !== 3 || !v.every(isFinite) || !v.some((c) => c !== 0)) {
+          showError("plane normal: expected three numbers nx, ny, nz, not all 0"); return syncInputs();
+        }
+        // The plane turns about its point (which stays inside the box).
+        row.plane = [...row.plane.slice(0, 3), ...unitNormal(v)]; syncInputs(); request(false);
+      });
+      const flip = mk("button", { type: "button", className: "plane-flip", textContent: "flip",
+                                  title: "keep the other side (negate the normal)" });
+      flip.addEventListener("click", () => {
+        row.plane = [...row.plane.slice(0, 3), ...row.plane.slice(3).map((v) => (v === 0 ? 0 : -v))];
+        syncInputs(); request(false);
+      });
+      const del = mk("button", { type: "button", className: "plane-remove", textContent: "remove" });
+      del.addEventListener("click", () => { st.planes.splice(k, 1); buildPlaneRows(); syncInputs(); request(false); });
+      const slider = mk("input", { type: "range", className: "plane-offset", min: "0", max: String(ui.SLIDER_STEPS),
+                                   step: "1", title: "offset along the normal" });
+      const value = mk("input", { type: "number", className: "plane-offset-value", step: "any",
+                                  title: "offset along the normal from the volume's centre (world units)" });
+      const b = () => st.hello.volume.bounds;
+      const setOffset = (s) => { row.plane = ui.planeAtOffset(b(), row.plane, s); };
+      const fromSlider = () => {
+        const h = ui.planeHalfRange(b(), row.plane.slice(3));
+        setOffset(ui.sliderValue(parseInt(slider.value, 10), -h, h));
+      };
+      slider.addEventListener("input", () => { fromSlider(); syncInputs(); request(true); });
+      slider.addEventListener("change", () => { fromSlider(); syncInputs(); request(false); });
+      value.addEventListener("change", () => {
+        const s = parseFloat(value.value);
+        if (!isFinite(s)) return syncInputs();
+        setOffset(s); syncInputs(); request(false);
+      });
+      const line1 = mk("div", { className: "plane-line" }), line2 = mk("div", { className: "plane-line" });
+      line1.append(on, mk("span", { className: "plane-label", textContent: `${k + 1} normal` }), normal, flip, del);
+      line2.append(mk("span", { className: "plane-label", textContent: "offset" }), slider, value);
+      div.append(line1, line2);
+      list.appendChild(div);
+    });
+  }
+  // Row values from the state (the text being typed into is left alone).
+  function syncPlaneRows() {
+    const rows = $("plane-list").querySelectorAll(".plane-row");
+    if (rows.length !== st.planes.length) return buildPlaneRows(), syncPlaneRows();
+    const b = st.hello.volume.bounds;
+    st.planes.forEach((row, k) => {
+      const el = rows[k], n = row.plane.slice(3), h = ui.planeHalfRange(b, n), s = ui.planeOffset(b, row.plane);
+      el.querySelector(".plane-on").checked = row.enabled;
+      el.classList.toggle("disabled", !row.enabled);
+      const normal = el.querySelector(".plane-normal"), value = el.querySelector(".plane-offset-value");
+      if (document.activeElement !== normal) normal.value = n.map(fmt).join(", ");
+      el.querySelector(".plane-offset").value = String(ui.sliderPos(s, -h, h));
+      if (document.activeElement !== value) value.value = String(Number(s.toPrecision(6)));
+      value.min = String(-h); value.max = String(h);
+    });
+    const full = st.planes.length >= maxPlanes();
+    $("plane-add").disabled = full;
+    $("plane-count").textContent = `${st.planes.length} / ${maxPlanes()}`;
+  }
+  $("plane-add").addEventListener("click", () => {
+    if (st.planes.length >= maxPlanes()) return;
+    addPlaneRow(ui.newPlane(st.frameCamera, st.hello.volume.bounds, st.clip.box), true);
+    buildPlaneRows(); syncInputs(); request(false);
   });
 
   // --- time ---------------------------------------------------------------------------------
