@@ -299,7 +299,7 @@ def expected_sample_count(t_near: float, t_far: float, dt: float) -> int:
 
 def reference_iso(
     volume, tf, camera, width: int, height: int, values, colors=None, *, dt: float | None = None,
-    ert: float = 0.99, dvr: bool = False, steps: int = 10,
+    ert: float = 0.99, dvr: bool = False, steps: int = 5,
 ) -> np.ndarray:
     """Render like ``sparsecast.render(..., index='naive', mode='iso' (or 'iso+dvr'), shading=False)``.
 

@@ -29,13 +29,15 @@ MAX_INTERVALS = 64
 
 
 @njit
-def _tile_intervals(record, cam, origin, inv_spacing, width, height, box, planes, out, counts, listed):
-    """Per pixel, the intervals ``next_interval`` yields (``out[py, px, i] = (t0, t1)``)."""
+def _tile_intervals(record, cam, origin, inv_spacing, width, height, box, planes, out, counts, listed, live):
+    """Per pixel, the intervals ``next_interval`` yields (``out[py, px, i] = (t0, t1)``);
+    per tile, its list length and what ``start_tile`` returned."""
     for tile in range(tile_count(width, height)):
         scratch = make_scratch(record)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
-        start_tile(record, scratch, tile_corner_rays(cam, x0, x1, y0, y1, width, height, origin, inv_spacing),
-                   box, planes)
+        live[tile] = start_tile(record, scratch,
+                                tile_corner_rays(cam, x0, x1, y0, y1, width, height, origin, inv_spacing),
+                                box, planes)
         listed[tile] = scratch[0]
         for py in range(y0, y1):
             for px in range(x0, x1):
@@ -70,9 +72,16 @@ def _intervals(idx, vol, cam, width, height, box=None, planes=None):
     out = np.zeros((height, width, MAX_INTERVALS, 2))
     counts = np.zeros((height, width), np.int64)
     listed = np.zeros(tile_count(width, height), np.int64)
+    live = np.zeros(tile_count(width, height), np.bool_)
     _tile_intervals(view_record, cam_p, origin, inv_spacing, width, height, tuple(map(float, box)), planes,
-                    out, counts, listed)
+                    out, counts, listed, live)
     assert counts.max() < MAX_INTERVALS
+    # start_tile's promise, which lets the driver skip a tile's rays: a tile it calls
+    # empty gives no ray an interval (and it calls empty only tiles with empty lists)
+    for tile in np.flatnonzero(~live):
+        x0, x1, y0, y1 = tile_bounds(tile, width, height)
+        assert listed[tile] == 0
+        assert counts[y0:y1, x0:x1].sum() == 0, tile
     return out, counts, listed
 
 
@@ -108,6 +117,25 @@ def test_tile_lists_give_each_ray_its_own_intervals(scene, camera):
     assert ref_n.sum() > 0
     np.testing.assert_array_equal(got_n, ref_n)
     np.testing.assert_array_equal(got, ref)
+
+
+def test_empty_tiles_keep_the_initial_rgba_and_count_no_samples(scene):
+    # The driver writes the pixels of a tile that start_tile calls empty without
+    # setting up their rays: they must still composite `initial` over the background.
+    vol, tf = scene
+    cam = sc.Camera.orbit(vol, 31.0, 17.0, zoom=0.5)  # the volume small on screen: most tiles empty
+    width, height = 64, 56
+    idx = sc.build_index(vol, tf, "kdtree-deep")
+    _, counts, listed = _intervals(idx, vol, cam, width, height)
+    assert np.count_nonzero(listed == 0) > tile_count(width, height) // 2
+    init = np.random.default_rng(3).uniform(0.0, 0.5, (height, width, 4)).astype(np.float32)
+    init[..., :3] *= init[..., 3:]  # premultiplied
+    for kw in (dict(), dict(initial=init, background="white"), dict(mode="iso", iso=0.5)):
+        ref = sc.render(vol, tf, cam, width, height, index="naive", **kw)
+        img = sc.render(vol, tf, cam, width, height, index="kdtree-deep", **kw)
+        assert np.abs(img.rgba - ref.rgba).max() <= 1e-5, kw
+        assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"], kw
+        assert np.all(img.samples[ref.samples == 0] == 0), kw
 
 
 def test_a_full_list_falls_back_to_per_ray_traversal(scene):

@@ -9,8 +9,11 @@ processes; a closure factory would recompile in every new process):
 
 ``make_scratch(record)``
     Per-tile scratch (a stack, a leaf box ...), allocated once per 8x8 tile.
-``start_tile(record, scratch, corners, box, planes)``
-    Begin an 8x8 tile (optional: records whose class sets ``TILE = True``).
+``start_tile(record, scratch, corners, box, planes) -> bool``
+    Begin an 8x8 tile (optional: records whose class sets ``TILE = True``), and
+    say whether any ray of it may meet an interval: ``False`` promises that
+    ``next_interval`` would yield nothing for every ray of the tile, and the
+    driver then writes the tile's pixels without setting up its rays.
     ``corners`` holds the index-space rays ``(ox, oy, oz, dx, dy, dz)`` of the
     tile's four corner pixels, ``(x0, y0), (x1, y0), (x1, y1), (x0, y1)``
     (:func:`~sparsecast.kernels.camera.tile_corner_rays`); every ray of the tile
@@ -64,7 +67,7 @@ Inlining. The driver is one Numba function per record type, voxel dtype, sampler
 mode and storage, so what is inlined into it is compiled again for each of these
 (about 85 in the test suite). Numba's own inlining (``inline="always"``) copies and
 re-types the callee's IR at every call site, recursively, and that, not LLVM, was
-most of a specialisation's compile time (a cold deep k-d tree render took 47 s).
+most of a specialisation's compile time (a cold deep k-d tree render took 45-47 s).
 The rule: inline at Numba level only the iterator's ``start_ray`` /
 ``next_interval`` and the per-sample path (:mod:`~sparsecast.kernels.sampler`, in
 :func:`~sparsecast.kernels.march.march_segment`), where a call per node or per
@@ -73,7 +76,7 @@ steps, stack pushes, node decoding) and everything once per ray or tile (clip
 intervals, corner rays, ``start_tile``) is a plain ``@njit`` call, which LLVM still
 inlines where it pays. ``integrate``'s lattice march names no record, so one cached
 copy serves every index. Measured: a cold deep k-d tree render compiles in 15 s
-instead of 47 s, the DDA grid in 3 s instead of 15 s, frames unchanged within noise.
+instead of 45-47 s, the DDA grid in 3 s instead of 15 s, frames unchanged within noise.
 Plain calls use ``error_model="numpy"`` like the driver (a ray parallel to an axis
 divides by zero).
 
@@ -100,7 +103,7 @@ def make_scratch(record):  # pragma: no cover - replaced by overloads in jitted 
 
 
 def start_tile(record, scratch, corners, box, planes):  # pragma: no cover
-    """Per-tile set-up of ``record`` (see the module docstring)."""
+    """Per-tile set-up of ``record``; False when no ray of the tile meets an interval (module docstring)."""
     raise NotImplementedError("start_tile is only callable from jitted code")
 
 
@@ -173,7 +176,7 @@ def _no_tile(record, scratch, corners, box, planes):
     cls = record_class(record)
     if cls is None or getattr(cls, "TILE", False):
         return None
-    return lambda record, scratch, corners, box, planes: None
+    return lambda record, scratch, corners, box, planes: True
 
 
 @overload(make_scratch, inline="always")

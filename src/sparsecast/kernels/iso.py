@@ -31,8 +31,12 @@ from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 __all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
 
-#: bisection steps refining a crossing (then one secant step): 2^-10 of a lattice step
-ISO_STEPS = 10
+#: bisection steps refining a crossing, then one secant step. Each step is one
+#: trilinear sample on a serial dependency chain (about 25 ns, a third of a hit's
+#: cost at 10 steps); after 5 (a bracket of 1/32 lattice step) the secant's error is
+#: second order, and shaded frames of the shared CT volumes differ from 10 steps by
+#: at most 0.003 per channel, under one 8-bit level.
+ISO_STEPS = 5
 #: isovalues one render takes
 MAX_ISOVALUES = 8
 

@@ -45,6 +45,14 @@ from ..kernels.tiles import tile_bounds
 __all__ = ["dvr_tile", "dvr_tiles", "dvr_tiles_uncached", "tiles_kernel"]
 
 
+@njit(cache=True, inline="always")
+def _initial(init, has_init, py, px):
+    """The premultiplied RGBA a ray starts from: ``init``'s pixel, or transparent."""
+    if has_init:
+        return float(init[py, px, 0]), float(init[py, px, 1]), float(init[py, px, 2]), float(init[py, px, 3])
+    return 0.0, 0.0, 0.0, 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty):
     """Render the pixels of one 8x8 tile of the output rectangle.
@@ -115,26 +123,31 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     # Indices that cull once per tile (interval.start_tile) see the tile's corner rays
     # and the clip (box and planes); for the others the branch folds away at compile
     # time, corner rays included.
+    live = True
     if culls_tiles(record):
-        start_tile(record, scratch,
-                   tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
-                   (cx0, cy0, cz0, cx1, cy1, cz1), planes)
+        live = start_tile(
+            record, scratch,
+            tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
+            (cx0, cy0, cz0, cx1, cy1, cz1), planes,
+        )
+    if not live and not capping:
+        # No ray of the tile meets an interval (and no cap sample is due): each pixel is
+        # what it would be after a traversal that yields nothing, without the ray set-up.
+        for py in range(y0, y1):
+            for px in range(x0, x1):
+                r, g, b, a = _initial(init, has_init, py, px)
+                write_pixel(out_rgba, py, px, r, g, b, a, background)
+                out_samples[py, px] = 0
+                out_nonempty[py, px] = 0
+        keep_alive(owned_scratch)
+        return
     for py in range(y0, y1):
         for px in range(x0, x1):
             ox, oy, oz, dx, dy, dz, wdx, wdy, wdz = index_space_ray(
                 cam, fx0 + px, fy0 + py, width, height, origin, inv_spacing,
             )
             ray = (ox, oy, oz, dx, dy, dz)
-            if has_init:
-                r = float(init[py, px, 0])
-                g = float(init[py, px, 1])
-                b = float(init[py, px, 2])
-                a = float(init[py, px, 3])
-            else:
-                r = 0.0
-                g = 0.0
-                b = 0.0
-                a = 0.0
+            r, g, b, a = _initial(init, has_init, py, px)
             n_samples = 0
             n_nonempty = 0
             k_lo, k_hi, t_lo, t_hi = clip_lattice(

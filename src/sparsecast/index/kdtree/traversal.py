@@ -236,8 +236,10 @@ def _tile(record, scratch, corners, box, planes):
         child = record.node_child
         cap = record.tile_leaves
         scratch[0] = 0 if cap > 0 else -1
-        if axis.shape[0] == 0 or cap == 0:
-            return
+        if axis.shape[0] == 0:
+            return False  # an empty tree: no ray meets a leaf
+        if cap == 0:
+            return True
         p0 = _plane(corners, 0)
         p1 = _plane(corners, 1)
         p2 = _plane(corners, 2)
@@ -259,7 +261,7 @@ def _tile(record, scratch, corners, box, planes):
             if ax < 0:
                 if count == cap:
                     scratch[0] = -1
-                    return
+                    return True
                 scratch[1 + count] = n
                 count += 1
                 continue
@@ -278,6 +280,8 @@ def _tile(record, scratch, corners, box, planes):
             _push_children(scratch, base + sp, c, left_first)
             sp += 2
         scratch[0] = count
+        # An empty list: the frustum meets no leaf, so no ray of the tile does.
+        return count > 0
 
     return impl
 
