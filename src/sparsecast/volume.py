@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Literal
+from collections.abc import Hashable
+from typing import Any, Literal
 
 import numpy as np
 
@@ -200,6 +201,7 @@ class Volume:
         self._bricks: dict[int, BrickStats] = {}
         self._labels: dict[int, BrickLabels | None] = {}
         self._ids: tuple[np.ndarray, np.ndarray] | None | bool = False  # False: not computed yet
+        self._derived: dict[Hashable, Any] = {}  # see derived()
 
     # -- basic properties -------------------------------------------------
     @property
@@ -312,6 +314,24 @@ class Volume:
         )
 
     # -- per-volume precomputation ----------------------------------------
+    def derived(self, key: Hashable) -> Any | None:
+        """What :meth:`keep_derived` stored under ``key``, or None.
+
+        A store for what renderers compute from this volume and reuse across frames
+        (e.g. the index :func:`sparsecast.render` builds from a name). It lives and
+        dies with the volume, and the voxels are read-only, so nothing in it goes
+        stale with them; what else an entry depends on (a TF) is its owner's to check.
+        """
+        return self._derived.get(key)
+
+    def keep_derived(self, key: Hashable, value: Any, limit: int = 4) -> None:
+        """Store ``value`` under ``key`` (see :meth:`derived`), dropping the oldest
+        entries beyond ``limit``, so the store never grows past a few entries."""
+        self._derived.pop(key, None)
+        self._derived[key] = value
+        while len(self._derived) > max(1, int(limit)):
+            del self._derived[next(iter(self._derived))]
+
     def brick_stats(self, brick_size: int = 8) -> BrickStats:
         """Per-brick min/max with a one-voxel apron (computed once, then cached).
 

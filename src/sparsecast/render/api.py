@@ -70,7 +70,10 @@ def render(
         see :mod:`sparsecast.index.auto`; the choice is ``stats["index"]`` and its
         reason ``stats["auto"]``), an index name from :func:`available_indices`
         (built on the fly; its build time appears in ``stats["build_ms"]``), or a
-        prebuilt index for this volume and TF, which is reused.
+        prebuilt index for this volume and TF, which is reused. An exact index built
+        from a name is kept with the volume and serves the next frames while the TF
+        leaves the same space empty (a camera path, a colour edit:
+        ``stats["index_reused"]``, ``build_ms`` 0); see :mod:`sparsecast.render.reuse`.
     ert : float
         Early ray termination once accumulated opacity reaches this, in (0, 1];
         1.0 turns it off.
@@ -157,7 +160,8 @@ def render(
     -------
     Image
         Premultiplied float32 RGBA and ``stats``: ``ms`` (marching only), ``samples``,
-        ``samples_nonempty``, ``rays``, ``build_ms`` (index built on the fly),
+        ``samples_nonempty``, ``rays``, ``build_ms`` (index built on the fly, 0 when
+        ``index_reused``),
         ``jit_ms`` (one-off kernel compilation or cache load of the driver and of an
         index built on the fly, kept out of ``ms`` and ``build_ms``).
 

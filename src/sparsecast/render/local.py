@@ -16,7 +16,7 @@ from .._util.checks import as_float, as_int, one_of
 from ..camera import Camera
 from ..errors import ParameterError
 from ..image import Image
-from ..index import SpatialIndex, View, build_index
+from ..index import SpatialIndex, View
 from ..kernels.iso import MAX_ISOVALUES, Iso, IsoDvr
 from ..kernels.march import Dvr
 from ..kernels.sampler import sampler_for
@@ -25,6 +25,7 @@ from ..transfer import TransferFunction
 from ..volume import Volume
 from .driver import tiles_kernel
 from .frame import Frame
+from .reuse import index_for_frame, same_emptiness
 from .schedule import run_tiles
 from .options import (
     DEFAULT_SHADING, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, background_array, check_size, initial_rgba,
@@ -120,10 +121,12 @@ def render_local(
     data = volume.voxels(classify, mode=mode)
     build_ms = 0.0
     build_jit_ms = 0.0
+    reused = False
     if isinstance(index, str):
-        index = build_index(volume, classify, index, **index_options)
-        build_ms = index.build_ms
-        build_jit_ms = index.compile_ms
+        index, reused = index_for_frame(volume, classify, index, index_options)
+        if not reused:
+            build_ms = index.build_ms
+            build_jit_ms = index.compile_ms
     elif isinstance(index, SpatialIndex):
         if index_options:
             raise ParameterError(
@@ -186,6 +189,7 @@ def render_local(
         "msamples_per_s": n_samples / ms / 1e3 if ms > 0 else float("nan"),
         "index": index.name,
         "build_ms": build_ms,
+        "index_reused": reused,
         "jit_ms": jit_ms,
         "width": w,
         "height": h,
@@ -219,16 +223,6 @@ def classification_tf(tf: TransferFunction, mode: str, iso) -> TransferFunction:
     if mode == "dvr":
         return tf
     return tf.with_spikes(np.atleast_1d(np.asarray(iso, np.float64)), keep_opacity=mode == "iso+dvr")
-
-
-def same_emptiness(a: TransferFunction, b: TransferFunction) -> bool:
-    """Whether an index built for ``a`` skips exactly what one built for ``b`` would:
-    trilinear TFs with the same range, table size and zero/non-zero opacity entries
-    (emptiness is decided by the prefix count of non-zero entries, nothing else)."""
-    if a is b:
-        return True
-    return (type(a) is type(b) is TransferFunction and a.value_range == b.value_range
-            and a.table_size == b.table_size and np.array_equal(a.prefix, b.prefix))
 
 
 def iso_mode(mode: str, iso, iso_colors, tf: TransferFunction) -> Dvr | Iso | IsoDvr:
