@@ -246,6 +246,43 @@ def test_clip_plane_rows_and_handles(driver, server):
     assert not errors, errors
 
 
+def test_keys_orbit_zoom_and_move_the_current_plane(driver, server):
+    """Over the page, arrows orbit and + zooms; [ / ] move the plane last added along its
+    normal and f flips it; typed into a field, the same keys do nothing to the view."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    driver.get(server.url)
+    wait_for(driver, f"return {IDLE};", 90, "the first full frame")
+    body = driver.find_element(By.TAG_NAME, "body")
+    cam0 = driver.execute_script("return window.sparsecastViewer.camera;")
+    press = lambda key: lambda: ActionChains(driver).move_to_element(body).send_keys(key).perform()
+    st = _changed_after(driver, "the right arrow", press(Keys.ARROW_RIGHT))
+    step = driver.execute_script("return window.sparsecastInteraction.KEY_ORBIT_DEG;")
+    assert st["camera"]["azimuth"] == pytest.approx((cam0["azimuth"] + step) % 360)
+    assert st["camera"]["elevation"] == pytest.approx(cam0["elevation"])
+    st = _changed_after(driver, "the + key", press("+"))
+    assert st["camera"]["zoom"] > cam0["zoom"]
+
+    st = _changed_after(driver, "adding a plane", driver.find_element(By.ID, "plane-add").click)
+    plane0 = st["planes"][0]["plane"]
+    offset = driver.find_element(By.CSS_SELECTOR, "#plane-list .plane-offset-value")
+    s0 = float(offset.get_attribute("value"))
+    # four steps move the cut a tenth of the box: through some of the blobs
+    st = _changed_after(driver, "the ] key", press("]]]]"))
+    assert st["planes"][0]["plane"][3:] == plane0[3:] and float(offset.get_attribute("value")) > s0
+    st = _changed_after(driver, "the f key", press("f"))
+    assert st["planes"][0]["plane"][3:] == pytest.approx([-v for v in plane0[3:]])
+    # keys typed into the plane's normal field stay there
+    cam1 = st["camera"]
+    normal = driver.find_element(By.CSS_SELECTOR, "#plane-list .plane-normal")
+    normal.send_keys(Keys.ARROW_LEFT, "]")
+    assert driver.execute_script("return window.sparsecastViewer.camera;") == cam1
+    errors = [e for e in driver.get_log("browser") if e.get("level") == "SEVERE"]
+    assert not errors, errors
+
+
 def _series_volume():
     """Four steps of a blob field, each step's blobs shifted: every step looks different."""
     import numpy as np

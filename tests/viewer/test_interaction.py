@@ -635,3 +635,59 @@ def test_the_pages_planes_render_as_render_does_and_the_overlay_outlines_the_cut
     full = [_python_pixel(cam, q, w, h) for q in corners]
     assert min(q[0] for q in full) < want[0] - 2 or max(q[0] for q in full) > want[1] + 2 or \
         min(q[1] for q in full) < want[2] - 2 or max(q[1] for q in full) > want[3] + 2  # the plane cut the outline
+
+
+# --- keyboard ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("key, dx, dy", [("ArrowRight", 1, 0), ("ArrowLeft", -1, 0), ("ArrowDown", 0, 1),
+                                         ("ArrowUp", 0, -1)])
+def test_arrow_keys_orbit_like_a_drag_of_their_direction(key, dx, dy):
+    cam = {"azimuth": 30.0, "elevation": 10.0, "zoom": 1.5}
+    got = js(f"[ui.keyAction({json.dumps(key)}, false, {json.dumps(cam)}), "
+             f"ui.keyAction({json.dumps(key)}, true, {json.dumps(cam)}), ui.KEY_ORBIT_DEG]")
+    coarse, fine, deg = got[0]["camera"], got[1]["camera"], got[2]
+    for step, moved in ((deg, coarse), (1.0, fine)):  # shift: one degree
+        assert moved["azimuth"] == pytest.approx(30.0 + dx * step)
+        assert moved["elevation"] == pytest.approx(10.0 + dy * step)
+        assert moved["zoom"] == 1.5
+    # the same sense as dragging the pointer that way (which moves the surface with it)
+    drag = js(f"ui.orbitDrag(30, 10, {dx * 10}, {dy * 10})")
+    assert (drag["azimuth"] - 30.0) * dx >= 0 and (drag["elevation"] - 10.0) * dy >= 0
+    # elevation stops short of the poles, azimuth wraps
+    top = js('ui.keyAction("ArrowDown", false, {"azimuth": 358, "elevation": 88, "zoom": 1})')["camera"]
+    assert top["elevation"] < 90
+    assert js('ui.keyAction("ArrowRight", false, {"azimuth": 358, "elevation": 0, "zoom": 1})')["camera"][
+        "azimuth"] == pytest.approx((358 + js("ui.KEY_ORBIT_DEG")) % 360)
+
+
+def test_zoom_plane_and_other_keys():
+    cam = {"azimuth": 0, "elevation": 0, "zoom": 2.0}
+    f = js("ui.KEY_ZOOM")
+    zin, zout, eq = (js(f"ui.keyAction({json.dumps(k)}, false, {json.dumps(cam)})")["camera"]["zoom"]
+                     for k in ("+", "-", "="))
+    assert zin == pytest.approx(2.0 * f) and zout == pytest.approx(2.0 / f) and eq == zin
+    assert js('ui.keyAction("+", false, {"azimuth": 0, "elevation": 0, "zoom": 49})')["camera"]["zoom"] == 50
+    assert js(f'ui.keyAction("]", false, {json.dumps(cam)})') == {"plane": 1}
+    assert js(f'ui.keyAction("[", true, {json.dumps(cam)})') == {"plane": -0.25}
+    assert js(f'ui.keyAction("f", false, {json.dumps(cam)})') == {"flip": True}
+    for key in ("a", "Enter", " ", "Escape"):
+        assert js(f"ui.keyAction({json.dumps(key)}, false, {json.dumps(cam)})") is None
+
+
+def test_plane_keys_move_it_along_its_normal_within_the_box():
+    import numpy as np
+
+    lo, hi = (np.array(b) for b in BOUNDS)
+    frac = js("ui.KEY_PLANE_FRACTION")
+    for plane in _random_planes(4, 11):
+        h = js(f"ui.planeHalfRange({json.dumps(BOUNDS)}, {plane[3:]})")
+        s0 = js(f"ui.planeOffset({json.dumps(BOUNDS)}, {plane})")
+        for steps in (1, -1, 3, -0.25):
+            got = js(f"ui.planeNudge({json.dumps(BOUNDS)}, {plane}, {steps})")
+            s1 = js(f"ui.planeOffset({json.dumps(BOUNDS)}, {json.dumps(got)})")
+            assert s1 == pytest.approx(np.clip(s0 + steps * frac * h, -h, h), abs=1e-9)
+            np.testing.assert_allclose(got[3:], np.asarray(plane[3:]) / np.linalg.norm(plane[3:]), atol=1e-12)
+            assert all(0 <= c <= 1 for c in got[:3])
+        # held down, it stops at the far corner of the box
+        far = js(f"ui.planeNudge({json.dumps(BOUNDS)}, {plane}, 1e6)")
+        assert js(f"ui.planeOffset({json.dumps(BOUNDS)}, {json.dumps(far)})") == pytest.approx(h)

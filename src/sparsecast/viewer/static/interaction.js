@@ -383,7 +383,39 @@
     return { box: box.map((c) => c.slice()), planes, cap: Boolean(cap) };
   }
 
-  const api = { orbitDrag, opacityAt, sliderValue, sliderPos, clipPair, ORBIT_DEG_PER_PX, SNAP_PX, SLIDER_STEPS,
+  // Keyboard: degrees an arrow key orbits (shift: fine steps), the zoom factor of + / -,
+  // and the fraction of a plane's half range that [ / ] move it along its normal.
+  const KEY_ORBIT_DEG = 5, KEY_ORBIT_FINE_DEG = 1, KEY_ZOOM = 1.1, KEY_PLANE_FRACTION = 0.05;
+
+  // What a key does over the view: {camera: {azimuth, elevation, zoom}} for the orbit and
+  // zoom keys (arrows as a drag of the same sense, so the surface moves with the arrow),
+  // {plane: steps} to move the current plane along its normal ([ back, ] forward), {flip:
+  // true} to keep its other side (f), or null for any other key.
+  function keyAction(key, shift, camera) {
+    const step = (shift ? KEY_ORBIT_FINE_DEG : KEY_ORBIT_DEG) / ORBIT_DEG_PER_PX;
+    const orbit = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] }[key];
+    if (orbit) {
+      const ang = orbitDrag(camera.azimuth, camera.elevation, orbit[0], orbit[1]);
+      return { camera: { azimuth: ang.azimuth, elevation: ang.elevation, zoom: camera.zoom } };
+    }
+    const zoom = { "+": KEY_ZOOM, "=": KEY_ZOOM, "-": 1 / KEY_ZOOM, _: 1 / KEY_ZOOM }[key];
+    if (zoom) {
+      return { camera: { azimuth: camera.azimuth, elevation: camera.elevation,
+                         zoom: Math.max(0.05, Math.min(50, camera.zoom * zoom)) } };
+    }
+    if (key === "[" || key === "]") return { plane: (key === "]" ? 1 : -1) * (shift ? 0.25 : 1) };
+    if (key === "f" || key === "F") return { flip: true };
+    return null;
+  }
+
+  // `plane` moved `steps` key steps (KEY_PLANE_FRACTION of its half range each) along
+  // its normal, held inside the box as the offset slider holds it.
+  function planeNudge(bounds, plane, steps) {
+    const h = planeHalfRange(bounds, plane.slice(3));
+    return planeAtOffset(bounds, plane, planeOffset(bounds, plane) + steps * KEY_PLANE_FRACTION * h);
+  }
+
+  const api = { orbitDrag, keyAction, planeNudge, KEY_ORBIT_DEG, KEY_ZOOM, KEY_PLANE_FRACTION, opacityAt, sliderValue, sliderPos, clipPair, ORBIT_DEG_PER_PX, SNAP_PX, SLIDER_STEPS,
                 depth, projectPoint, clipSegment, clipBoxWorld, boxEdges, faceHandles, pickHandle, faceAxisPx,
                 pixelRay, faceDrag, MIN_AXIS_PX,
                 fracToWorld, worldToFrac, planeHalfRange, planeOffset, planeAtOffset, planeRecentre, newPlane,

@@ -291,6 +291,7 @@
       const info = st.handleInfo[hit];
       hdrag = Object.assign({ x, y, box: st.clip.box.map((c) => c.slice()), cam: st.frameCamera }, info,
                             info.kind === "face" ? {} : { plane: st.planes[info.k].plane.slice() });
+      if (info.kind !== "face") st.currentPlane = info.k;  // the plane the keys move
       st.activeHandle = hit;
       view.setPointerCapture(e.pointerId);
       view.classList.add("dragging-handle");
@@ -352,6 +353,28 @@
     syncInputs();
     request(true);
   }, { passive: false });
+
+  // Keys over the page (not while typing into a field): arrows orbit (shift: finer), + / -
+  // zoom, [ / ] move the current plane (the last one added or dragged) along its normal,
+  // f flips it. Held keys repeat as preview frames; the release renders in full.
+  let keyed = false;
+  document.addEventListener("keydown", (e) => {
+    const t = e.target;
+    if (!st.hello || e.ctrlKey || e.metaKey || e.altKey ||
+        (t && (t.isContentEditable || ["INPUT", "TEXTAREA", "SELECT"].includes(t.tagName)))) return;
+    const act = ui.keyAction(e.key, e.shiftKey, st.camera);
+    if (!act) return;
+    const k = Math.min(st.currentPlane ?? st.planes.length - 1, st.planes.length - 1);
+    if (act.camera) Object.assign(st.camera, act.camera);
+    else if (k < 0) return;  // a plane key with no plane
+    else if (act.flip) st.planes[k].plane = [...st.planes[k].plane.slice(0, 3), ...st.planes[k].plane.slice(3).map((v) => (v === 0 ? 0 : -v))];
+    else st.planes[k].plane = ui.planeNudge(st.hello.volume.bounds, st.planes[k].plane, act.plane);
+    e.preventDefault();
+    keyed = true;
+    syncInputs();
+    request(true);
+  });
+  document.addEventListener("keyup", () => { if (keyed) { keyed = false; request(false); } });
 
   for (const id of ["azimuth", "elevation", "zoom"]) {
     $(id).addEventListener("change", () => {
@@ -528,7 +551,7 @@
   $("clip-cap").addEventListener("change", () => { st.clip.cap = $("clip-cap").checked; request(false); });
   $("clip-show").addEventListener("change", drawOverlay);
   $("clip-reset").addEventListener("click", () => {
-    st.clip = { box: [[0, 0, 0], [1, 1, 1]], cap: st.clip.cap }; st.planes = [];
+    st.clip = { box: [[0, 0, 0], [1, 1, 1]], cap: st.clip.cap }; st.planes = []; st.currentPlane = undefined;
     buildPlaneRows(); syncInputs(); request(false);
   });
 
@@ -540,6 +563,7 @@
     const used = new Set(st.planes.map((r) => r.colour));
     const colour = PLANE_COLOURS.find((c) => !used.has(c)) || PLANE_COLOURS[st.planes.length % PLANE_COLOURS.length];
     st.planes.push({ plane, enabled, colour });
+    st.currentPlane = st.planes.length - 1;  // the plane the keys move
   }
   function buildPlaneRows() {
     const list = $("plane-list"); list.innerHTML = "";
@@ -565,7 +589,7 @@
         syncInputs(); request(false);
       });
       const del = mk("button", { type: "button", className: "plane-remove", textContent: "remove" });
-      del.addEventListener("click", () => { st.planes.splice(k, 1); buildPlaneRows(); syncInputs(); request(false); });
+      del.addEventListener("click", () => { st.planes.splice(k, 1); st.currentPlane = undefined; buildPlaneRows(); syncInputs(); request(false); });
       const slider = mk("input", { type: "range", className: "plane-offset", min: "0", max: String(ui.SLIDER_STEPS),
                                    step: "1", title: "offset along the normal" });
       const value = mk("input", { type: "number", className: "plane-offset-value", step: "any",
