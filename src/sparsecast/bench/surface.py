@@ -2,7 +2,11 @@
 
 Per mesh (the shared ``bunny`` and ``beast``, and ``bunny-1m``: the bunny
 midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
-in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
+in when the shared data is absent; opt-in: ``bunny-4m``, ``sphere-1m``, and the
+RBVH's own regime of 4-10 M triangles, built in memory from the shared dragon:
+``dragon`` (871 k), ``dragon-3.5m`` (subdivided once: the same surface, four times
+the triangles) and ``dragons-7m`` (eight dragons side by side, each turned about
+the vertical: 7 M triangles of distinct surface)):
 
 - ``phase="load"``: reading (and generating) the mesh;
 - ``phase="build"`` (Tables 1-2): the exact BVH (``bvh``: the 4-wide layout;
@@ -61,6 +65,25 @@ def _shared(file: str) -> Callable[[], TriangleMesh]:
     return load
 
 
+def side_by_side(mesh: TriangleMesh, nx: int, ny: int, seed: int = 3) -> TriangleMesh:
+    """``nx * ny`` copies of ``mesh`` on a grid in the xy plane, each turned about z by a random angle.
+
+    Copies are spaced by the mesh's largest horizontal extent plus 15 %, so they
+    never overlap whatever their turn; the turns make every copy present a
+    different side to the camera (a scene of distinct surfaces, not one repeated view).
+    """
+    v = mesh.vertices - mesh.vertices.mean(axis=0)
+    pitch = 1.15 * float(np.linalg.norm(np.ptp(v[:, :2], axis=0)))
+    angles = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, nx * ny)
+    verts, faces = [], []
+    for k, a in enumerate(angles):
+        c, s = np.cos(a), np.sin(a)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        verts.append(v @ rot.T + np.array([(k % nx) * pitch, (k // nx) * pitch, 0.0]))
+        faces.append(mesh.faces + k * len(v))
+    return TriangleMesh(np.concatenate(verts), np.concatenate(faces), f"{mesh.source} ({nx}x{ny} copies)")
+
+
 #: name -> (loader, needs shared data)
 MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny": (_shared("stanford_bunny.ply"), True),
@@ -68,6 +91,9 @@ MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny-1m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 2), True),
     "bunny-4m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 3), True),
     "sphere-1m": (lambda: icosphere(8), False),
+    "dragon": (_shared("stanford_dragon_871k.ply"), True),
+    "dragon-3.5m": (lambda: subdivide(_shared("stanford_dragon_871k.ply")(), 1), True),
+    "dragons-7m": (lambda: side_by_side(_shared("stanford_dragon_871k.ply")(), 4, 2), True),
 }
 DEFAULT_DATASETS = ("bunny", "beast", "bunny-1m")
 
