@@ -11,8 +11,9 @@ the vertical: 7 M triangles of distinct surface)):
 - ``phase="load"``: reading (and generating) the mesh;
 - ``phase="build"`` (Tables 1-2): the exact BVH (``bvh``: the 4-wide layout;
   ``bvh-binary``: the same build tree in the binary layout) and the RBVH at Q0-Q4 (SAH
-  splits) plus Q2 with median splits and Q2 with 3 mip levels: build ms, nodes, tiles, texels, bytes of
-  nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
+  splits, 4-wide layout) plus Q2 with median splits, Q2 in the binary layout
+  (``rbvh-Q2-binary``) and Q2 with 3 mip levels: build ms, nodes, tiles, texels,
+  bytes of nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
   triangles) from the same run;
 - ``phase="render"`` (Table 3, primary rays) and ``phase="render_diffuse"``
   (Table 4, one cosine-distributed diffuse ray per primary hit, the same rays for
@@ -232,6 +233,11 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
                            quality="Q2", split="median")
     indices["rbvh-Q2-median"] = med
     _mem_ratio(med, bvh_bytes, record, name, "rbvh-Q2-median")
+    # The binary tree the wide layout is collapsed from: what the 4-wide nodes buy.
+    binary = build_and_record("rbvh-Q2-binary", lambda: build_rbvh(mesh, "Q2", layout="binary"),
+                              quality="Q2", split="sah", layout="binary")
+    indices["rbvh-Q2-binary"] = binary
+    _mem_ratio(binary, bvh_bytes, record, name, "rbvh-Q2-binary")
     mip = build_and_record("rbvh-Q2-mip3", lambda: build_rbvh(mesh, "Q2", mip_levels=3), quality="Q2",
                            split="sah", mip_levels=3)
     indices["rbvh-Q2-mip3"] = mip

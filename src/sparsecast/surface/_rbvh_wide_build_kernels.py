@@ -5,10 +5,10 @@ node opens its inner child of largest surface area until it has four), applied
 to the RBVH's binary nodes, whose leaves are tiles or runs of triangles rather
 than packets. Layout (:mod:`._rbvh_wide_kernels` traverses it):
 
-- ``box`` (n, 6, 4) float32: the children's boxes in SoA rows (rows 0-2 the min
+- ``box`` (n, 6, WIDTH) float32: the children's boxes in SoA rows (rows 0-2 the min
   corner x, y, z, rows 3-5 the max corner), as the exact wide BVH; an unused
   slot has the empty box ``min = +inf, max = -inf``, which no ray enters;
-- ``child`` (n, 4) and ``count`` (n, 4) int32: the binary encoding per slot
+- ``child`` (n, WIDTH) and ``count`` (n, WIDTH) int32: the binary encoding per slot
   (:mod:`._bvh_kernels`): ``count == 0`` a wide node ``child``; ``count > 0`` a
   triangle leaf of ``count`` triangles from ``child``; ``count == TILE_LEAF`` tile
   ``child``. Leaves keep the binary tree's references, so the triangle and atlas
@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+#: children per wide node
+WIDTH = 4
 
 
 @njit(cache=True, inline="always")
@@ -33,7 +36,7 @@ def _area(bounds, k):
 def collapse_rbvh(node_bounds, node_child, node_count):
     """Wide layout of the binary RBVH ``node_bounds (m, 2, 3), node_child (m,), node_count (m,)``.
 
-    Returns ``box (n, 6, 4) float32, child (n, 4) int32, count (n, 4) int32, depth``
+    Returns ``box (n, 6, WIDTH) float32, child (n, 4) int32, count (n, 4) int32, depth``
     (see the module docstring); ``n`` is at most the binary inner nodes (or 1).
     """
     m = node_count.shape[0]
@@ -41,13 +44,13 @@ def collapse_rbvh(node_bounds, node_child, node_count):
     for k in range(m):
         n_inner += node_count[k] == 0
     cap = max(n_inner, 1)
-    box = np.empty((cap, 6, 4), np.float32)
-    child = np.zeros((cap, 4), np.int32)
-    count = np.zeros((cap, 4), np.int32)
+    box = np.empty((cap, 6, WIDTH), np.float32)
+    child = np.zeros((cap, WIDTH), np.int32)
+    count = np.zeros((cap, WIDTH), np.int32)
     st_bin = np.empty(cap + 1, np.int32)
     st_dst = np.empty(cap + 1, np.int32)
     st_depth = np.empty(cap + 1, np.int32)
-    kids = np.empty(4, np.int32)
+    kids = np.empty(WIDTH, np.int32)
     st_bin[0], st_dst[0], st_depth[0] = 0, 0, 1
     sp = 1
     n_nodes = 1
@@ -62,7 +65,7 @@ def collapse_rbvh(node_bounds, node_child, node_count):
         else:
             n_kids = 2
             kids[0], kids[1] = node_child[b], node_child[b] + 1
-        while n_kids < 4:
+        while n_kids < WIDTH:
             best, best_area = -1, -1.0
             for i in range(n_kids):
                 if node_count[kids[i]] == 0:
@@ -75,7 +78,7 @@ def collapse_rbvh(node_bounds, node_child, node_count):
             kids[best] = node_child[c]
             kids[n_kids] = node_child[c] + 1
             n_kids += 1
-        for i in range(4):
+        for i in range(WIDTH):
             if i >= n_kids:
                 for a in range(3):
                     box[dst, a, i] = np.inf

@@ -6,7 +6,7 @@ once per ray from the direction's signs, widened by :data:`._wide_kernels.ROBUST
 the children the ray enters go on the stack sorted by entry distance, nearest on
 top, and an entry farther than the best hit so far is dropped when popped.
 
-Leaves go on the same stack as ``-1 - (4 node + slot)``, so a leaf is opened in
+Leaves go on the same stack as ``-1 - (WIDTH node + slot)``, so a leaf is opened in
 order of its box's entry distance like any child, and its entry distance (kept
 on the stack) picks the mip level of a tile as the binary kernel does. Leaf
 tests are the binary kernel's: the height-field search of
@@ -25,6 +25,7 @@ from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
 from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
+from ._rbvh_wide_build_kernels import WIDTH
 from ._rbvh_kernels import tile_hit
 from ._wide_kernels import ROBUST, _inv, slab_origins
 
@@ -33,25 +34,26 @@ RAY_CHUNK = 64
 
 
 def stack_size(depth: int) -> int:
-    """Stack entries a ray needs in a wide tree of ``depth`` levels (three siblings wait per level,
-    and a node's four children may all be leaves)."""
-    return 3 * int(depth) + 5
+    """Stack entries a ray needs in a wide tree of ``depth`` levels (``WIDTH - 1`` siblings wait
+    per level, and the deepest node's children may all be leaves)."""
+    return (WIDTH - 1) * int(depth) + WIDTH + 1
 
 
 @njit(cache=True, inline="always")
 def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
                           atlas_depth, atlas_normal, ox, oy, oz, dx, dy, dz, t_min, t_max,
                           st_node, st_t, lane_t, fp0, spread, n_levels):
-    """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (4,) float64.
+    """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (WIDTH,) float64.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.rbvh_wide.WideRBVH.nodes`). Returns ``(t, nx, ny, nz, face, tile, a, b)``
     as :func:`._bvh_kernels.closest_hit`.
     """
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
-    nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
-    nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
-    nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
+    # Offsets of the near and far box rows per axis (row r of a node starts at r * WIDTH).
+    nxr, fxr = (0, 3 * WIDTH) if ix >= 0.0 else (3 * WIDTH, 0)
+    nyr, fyr = (WIDTH, 4 * WIDTH) if iy >= 0.0 else (4 * WIDTH, WIDTH)
+    nzr, fzr = (2 * WIDTH, 5 * WIDTH) if iz >= 0.0 else (5 * WIDTH, 2 * WIDTH)
     onx, ofx = slab_origins(ox, dx)
     ony, ofy = slab_origins(oy, dy)
     onz, ofz = slab_origins(oz, dz)
@@ -73,17 +75,17 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj
         if entry >= 0:
             node = entry
             sp0 = sp
-            for c in range(4):
+            for c in range(WIDTH):
                 tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
                          max((box[node, nzr + c] - onz) * iz, t_min))
                 tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
                          (box[node, fzr + c] - ofz) * iz) * ROBUST
                 lane_t[c] = tn if tn <= min(tf, best) else math.inf
-            for c in range(4):
+            for c in range(WIDTH):
                 t = lane_t[c]
                 if t == math.inf:
                     continue
-                code = child[node, 24 + c] if child[node, 28 + c] == 0 else -1 - (4 * node + c)
+                code = child[node, 6 * WIDTH + c] if child[node, 7 * WIDTH + c] == 0 else -1 - (WIDTH * node + c)
                 # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
                 j = sp
                 while j > sp0 and st_t[j - 1] < t:
@@ -95,9 +97,9 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj
                 sp += 1
             continue
         slot = -1 - entry
-        node, c = slot >> 2, slot & 3
-        first = child[node, 24 + c]
-        count = child[node, 28 + c]
+        node, c = slot // WIDTH, slot % WIDTH
+        first = child[node, 6 * WIDTH + c]
+        count = child[node, 7 * WIDTH + c]
         if count > 0:
             for k in range(first, first + count):
                 t, u, v = intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, best)
@@ -127,7 +129,7 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, 
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for ck in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(4))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
         # Borrowed views: owned arrays passed per ray cost atomic reference counts (kernels.borrow).
         bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
             (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
@@ -154,7 +156,7 @@ def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_pro
     fp0 = 0.0 if params[12] != 0.0 else pixel
     spread = pixel if params[12] != 0.0 else 0.0
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(4))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
         bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
             (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
         st_node, st_t, lane_t = borrowed(scratch)

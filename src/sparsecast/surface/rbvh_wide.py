@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._rbvh_wide_build_kernels import collapse_rbvh
+from ._rbvh_wide_build_kernels import WIDTH, collapse_rbvh
 from ._rbvh_wide_kernels import stack_size
 
 __all__ = ["WideRBVH", "collapse_binary"]
@@ -43,17 +43,17 @@ class WideRBVH:
     def box(self) -> np.ndarray:
         """(n, 6, 4) float32 view: ``box[k, a, c]`` min corner coordinate ``a`` of child ``c``,
         ``box[k, 3 + a, c]`` the max corner's."""
-        return self.nodes[:, :24].reshape(-1, 6, 4)
+        return self.nodes[:, :6 * WIDTH].reshape(-1, 6, WIDTH)
 
     @property
     def child(self) -> np.ndarray:
         """(n, 4) int32 view: wide node, first leaf triangle, or tile of each slot."""
-        return self.nodes.view(np.int32)[:, 24:28]
+        return self.nodes.view(np.int32)[:, 6 * WIDTH:7 * WIDTH]
 
     @property
     def count(self) -> np.ndarray:
         """(n, 4) int32 view: 0 (wide node), triangles (> 0) or ``TILE_LEAF`` per slot."""
-        return self.nodes.view(np.int32)[:, 28:32]
+        return self.nodes.view(np.int32)[:, 7 * WIDTH:]
 
     @property
     def stack_size(self) -> int:
@@ -72,12 +72,12 @@ class WideRBVH:
 def collapse_binary(node_bounds: np.ndarray, node_child: np.ndarray, node_count: np.ndarray) -> WideRBVH:
     """The wide layout of a binary RBVH (``node_*`` as :class:`.index.SurfaceIndex` holds them)."""
     box, child, count, depth = collapse_rbvh(node_bounds, node_child, node_count)
-    n = len(box)
-    # 64-byte alignment: a node is two whole cache lines.
-    buf = np.empty(n * 32 + 16, np.float32)
+    n, w = len(box), WIDTH
+    # 64-byte alignment: a node is whole cache lines.
+    buf = np.empty(n * 8 * w + 16, np.float32)
     skip = (-buf.ctypes.data % 64) // 4
-    nodes = buf[skip:skip + n * 32].reshape(n, 32)
-    nodes[:, :24] = box.reshape(n, 24)
-    nodes.view(np.int32)[:, 24:28] = child
-    nodes.view(np.int32)[:, 28:32] = count
+    nodes = buf[skip:skip + n * 8 * w].reshape(n, 8 * w)
+    nodes[:, :6 * w] = box.reshape(n, 6 * w)
+    nodes.view(np.int32)[:, 6 * w:7 * w] = child
+    nodes.view(np.int32)[:, 7 * w:] = count
     return WideRBVH(nodes, int(depth), node_bounds[0].copy())
