@@ -198,6 +198,11 @@ def test_surface_section_reports_both_layouts_per_cpu_second():
     # The exact layouts see the same hits.
     assert by[("bvh-binary", "render")]["hits"] == by[("bvh", "render")]["hits"]
     assert by[("bvh-binary", "render")]["hit_mismatch_pct"] == 0.0
+    # So do the RBVH's: the binary tree and its 4-wide collapse hold the same leaves.
+    assert by[("rbvh-Q2-binary", "build")]["layout"] == "binary"
+    assert by[("rbvh-Q2-binary", "build")]["tiles"] == by[("rbvh-Q2", "build")]["tiles"]
+    assert by[("rbvh-Q2-binary", "build")]["nodes"] > by[("rbvh-Q2", "build")]["nodes"]
+    assert by[("rbvh-Q2-binary", "render")]["hits"] == by[("rbvh-Q2", "render")]["hits"]
     try:
         import open3d  # noqa: F401
     except Exception:

@@ -228,3 +228,55 @@ def test_mip_levels_follow_the_footprint_without_cracks(rng):
 
     hits = cast_camera(index, Camera.look_at((0, -40, 0), (0, 0, 0), fov_y=5.0), 48, 48)
     assert (hits.tile[np.isfinite(hits.t)] >= n).any()
+
+
+def _mixed_mesh() -> TriangleMesh:
+    """A fine plane (tiles) and a coarse box above it (exact triangle leaves)."""
+    plane = grid_plane(48)
+    box = box_mesh((0.3, 0.3, 0.2), (0.6, 0.7, 0.5), n=1)
+    return TriangleMesh(np.concatenate([plane.vertices, box.vertices]),
+                        np.concatenate([plane.faces, box.faces + len(plane.vertices)]), "plane+box")
+
+
+@pytest.mark.parametrize("mip_levels", [1, 3])
+def test_wide_layout_finds_the_binary_layouts_hits(rng, mip_levels):
+    mesh = _mixed_mesh()
+    binary = build_rbvh(mesh, "Q3", layout="binary", mip_levels=mip_levels)
+    wide = build_rbvh(mesh, "Q3", mip_levels=mip_levels)
+    sb, sw = binary.stats(), wide.stats()
+    assert sb["layout"] == "binary" and sw["layout"] == "wide" and wide.node_count.size == 0
+    # Same leaves, fewer nodes: the collapse keeps every tile and triangle leaf.
+    for key in ("tiles", "tile_leaves", "triangle_leaves", "triangles", "bytes_atlas"):
+        assert sw[key] == sb[key], key
+    assert sb["tile_leaves"] > 0 and sb["triangle_leaves"] > 0
+    assert sw["nodes"] < sb["nodes"] / 2 and sw["wide_depth"] < sb["depth"]
+    np.testing.assert_array_equal(wide.bounds, binary.bounds)
+    o = np.c_[rng.uniform(-0.05, 1.05, (3000, 2)), rng.uniform(1.0, 2.0, 3000)]
+    d = np.c_[rng.normal(0.0, 0.15, (3000, 2)), -np.ones(3000)]
+    # A footprint that spans the mip levels, so the leaf's entry distance must match too.
+    hb = raycast(binary, o, d, footprint=(0.0, 0.004))
+    hw = raycast(wide, o, d, footprint=(0.0, 0.004))
+    assert hb.hit.sum() > 1500 and (hb.face >= 0).sum() > 200 and (hb.tile >= 0).sum() > 1000
+    np.testing.assert_array_equal(hw.hit, hb.hit)
+    # The same surface at the same distance. Where tiles overlap at a seam both hold
+    # the surface, and the first one opened wins: the order differs between layouts.
+    np.testing.assert_array_equal(hw.tile >= 0, hb.tile >= 0)
+    np.testing.assert_array_equal(hw.face, hb.face)
+    np.testing.assert_allclose(hw.t[hw.hit], hb.t[hb.hit], rtol=0, atol=1e-6)
+    same = hw.tile == hb.tile
+    assert same.mean() > 0.9
+    np.testing.assert_allclose(hw.t[same & hw.hit], hb.t[same & hb.hit], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(hw.normals[same], hb.normals[same], atol=1e-6)
+
+
+def test_wide_layout_of_a_tree_that_is_one_leaf_and_a_bad_layout():
+    # A tetrahedron is one triangle leaf: the wide root holds that one leaf.
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    tet = TriangleMesh(v, np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]]), "tet")
+    index = build_rbvh(tet, "Q2")
+    s = index.stats()
+    assert s["nodes"] == 1 and s["triangle_leaves"] == 1 and s["tiles"] == 0
+    hits = raycast(index, [[0.2, 0.2, 2.0], [2.0, 2.0, 2.0]], [[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]])
+    np.testing.assert_allclose(hits.t, [1.4, np.inf], atol=1e-6)
+    with pytest.raises(ParameterError, match="layout"):
+        build_rbvh(tet, layout="octree")

@@ -2,13 +2,18 @@
 
 Per mesh (the shared ``bunny`` and ``beast``, and ``bunny-1m``: the bunny
 midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
-in when the shared data is absent; ``bunny-4m`` and ``sphere-1m`` are opt-in):
+in when the shared data is absent; opt-in: ``bunny-4m``, ``sphere-1m``, and the
+RBVH's own regime of 4-10 M triangles, built in memory from the shared dragon:
+``dragon`` (871 k), ``dragon-3.5m`` (subdivided once: the same surface, four times
+the triangles) and ``dragons-7m`` (eight dragons side by side, each turned about
+the vertical: 7 M triangles of distinct surface)):
 
 - ``phase="load"``: reading (and generating) the mesh;
 - ``phase="build"`` (Tables 1-2): the exact BVH (``bvh``: the 4-wide layout;
   ``bvh-binary``: the same build tree in the binary layout) and the RBVH at Q0-Q4 (SAH
-  splits) plus Q2 with median splits and Q2 with 3 mip levels: build ms, nodes, tiles, texels, bytes of
-  nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
+  splits, 4-wide layout) plus Q2 with median splits, Q2 in the binary layout
+  (``rbvh-Q2-binary``) and Q2 with 3 mip levels: build ms, nodes, tiles, texels,
+  bytes of nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
   triangles) from the same run;
 - ``phase="render"`` (Table 3, primary rays) and ``phase="render_diffuse"``
   (Table 4, one cosine-distributed diffuse ray per primary hit, the same rays for
@@ -61,6 +66,25 @@ def _shared(file: str) -> Callable[[], TriangleMesh]:
     return load
 
 
+def side_by_side(mesh: TriangleMesh, nx: int, ny: int, seed: int = 3) -> TriangleMesh:
+    """``nx * ny`` copies of ``mesh`` on a grid in the xy plane, each turned about z by a random angle.
+
+    Copies are spaced by the mesh's largest horizontal extent plus 15 %, so they
+    never overlap whatever their turn; the turns make every copy present a
+    different side to the camera (a scene of distinct surfaces, not one repeated view).
+    """
+    v = mesh.vertices - mesh.vertices.mean(axis=0)
+    pitch = 1.15 * float(np.linalg.norm(np.ptp(v[:, :2], axis=0)))
+    angles = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, nx * ny)
+    verts, faces = [], []
+    for k, a in enumerate(angles):
+        c, s = np.cos(a), np.sin(a)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        verts.append(v @ rot.T + np.array([(k % nx) * pitch, (k // nx) * pitch, 0.0]))
+        faces.append(mesh.faces + k * len(v))
+    return TriangleMesh(np.concatenate(verts), np.concatenate(faces), f"{mesh.source} ({nx}x{ny} copies)")
+
+
 #: name -> (loader, needs shared data)
 MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny": (_shared("stanford_bunny.ply"), True),
@@ -68,6 +92,9 @@ MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny-1m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 2), True),
     "bunny-4m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 3), True),
     "sphere-1m": (lambda: icosphere(8), False),
+    "dragon": (_shared("stanford_dragon_871k.ply"), True),
+    "dragon-3.5m": (lambda: subdivide(_shared("stanford_dragon_871k.ply")(), 1), True),
+    "dragons-7m": (lambda: side_by_side(_shared("stanford_dragon_871k.ply")(), 4, 2), True),
 }
 DEFAULT_DATASETS = ("bunny", "beast", "bunny-1m")
 
@@ -206,6 +233,11 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
                            quality="Q2", split="median")
     indices["rbvh-Q2-median"] = med
     _mem_ratio(med, bvh_bytes, record, name, "rbvh-Q2-median")
+    # The binary tree the wide layout is collapsed from: what the 4-wide nodes buy.
+    binary = build_and_record("rbvh-Q2-binary", lambda: build_rbvh(mesh, "Q2", layout="binary"),
+                              quality="Q2", split="sah", layout="binary")
+    indices["rbvh-Q2-binary"] = binary
+    _mem_ratio(binary, bvh_bytes, record, name, "rbvh-Q2-binary")
     mip = build_and_record("rbvh-Q2-mip3", lambda: build_rbvh(mesh, "Q2", mip_levels=3), quality="Q2",
                            split="sah", mip_levels=3)
     indices["rbvh-Q2-mip3"] = mip

@@ -103,7 +103,7 @@ def intersect_disc(discs, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
 
 
 @njit(cache=True, inline="always")
-def _mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
+def mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
     """Tile of leaf ``k`` at the mip level whose texel is at least the ray footprint."""
     fp = fp0 + spread * max(t_entry, 0.0)
     u2 = tile_proj[k, 3] * tile_proj[k, 3] + tile_proj[k, 4] * tile_proj[k, 4] + tile_proj[k, 5] * tile_proj[k, 5]
@@ -113,6 +113,23 @@ def _mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
         ratio *= 0.5
         level += 1
     return k + level * n_tiles
+
+
+@njit(cache=True)
+def hit_normal(faces, vnormals, tile_rect, atlas_normal, leaf_tri, tile, a, b):
+    """Unit shading normal of a hit on leaf triangle ``leaf_tri`` (barycentrics ``a, b`` of
+    vertices 1 and 2) or, when ``leaf_tri < 0``, on ``tile`` at texel coordinates ``(a, b)``."""
+    if leaf_tri >= 0:
+        w = 1.0 - a - b
+        f0, f1, f2 = faces[leaf_tri, 0], faces[leaf_tri, 1], faces[leaf_tri, 2]
+        nx = w * vnormals[f0, 0] + a * vnormals[f1, 0] + b * vnormals[f2, 0]
+        ny = w * vnormals[f0, 1] + a * vnormals[f1, 1] + b * vnormals[f2, 1]
+        nz = w * vnormals[f0, 2] + a * vnormals[f1, 2] + b * vnormals[f2, 2]
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 0.0:
+            nx, ny, nz = nx / ln, ny / ln, nz / ln
+        return nx, ny, nz
+    return tile_normal(atlas_normal, tile_rect[tile, 0], tile_rect[tile, 1], tile_rect[tile, 2], a, b)
 
 
 @njit(cache=True)
@@ -178,7 +195,7 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         else:
             k = nchild[node]
             if n_levels > 1:
-                k = _mip_tile(k, ray_box(nb, node, ob, ix, iy, iz, t_min, best), fp0, spread,
+                k = mip_tile(k, ray_box(nb, node, ob, ix, iy, iz, t_min, best), fp0, spread,
                               n_levels, tile_proj, tile_rect.shape[0] // n_levels)
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
             if t < best:
@@ -197,17 +214,8 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     if best_disc >= 0:
         nx, ny, nz = discs[best_disc, 3], discs[best_disc, 4], discs[best_disc, 5]
-    elif face >= 0:
-        w = 1.0 - ha - hb
-        f0, f1, f2 = faces[best_k, 0], faces[best_k, 1], faces[best_k, 2]
-        nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
-        ny = w * vnormals[f0, 1] + ha * vnormals[f1, 1] + hb * vnormals[f2, 1]
-        nz = w * vnormals[f0, 2] + ha * vnormals[f1, 2] + hb * vnormals[f2, 2]
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 0.0:
-            nx, ny, nz = nx / ln, ny / ln, nz / ln
     else:
-        nx, ny, nz = tile_normal(atlas_normal, tile_rect[tile, 0], tile_rect[tile, 1], tile_rect[tile, 2], ha, hb)
+        nx, ny, nz = hit_normal(faces, vnormals, tile_rect, atlas_normal, best_k, tile, ha, hb)
     return best, nx, ny, nz, face, tile, ha, hb
 
 

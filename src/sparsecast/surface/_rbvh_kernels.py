@@ -29,13 +29,6 @@ NORMAL_SCALE = 127.0
 
 
 @njit(cache=True, inline="always")
-def _slab_tile(o, d, lo, hi, t0, t1):
-    """``[t0, t1]`` restricted to one slab of a tile's box (the shared slab routine)."""
-    inv, flat = inverse(d)
-    return slab(o, inv, flat, lo, hi, t0, t1)
-
-
-@njit(cache=True, inline="always")
 def _bilerp(h00, h10, h01, h11, fs, ft):
     """Bilinear interpolation at ``(fs, ft)`` in a cell (extrapolates outside ``[0, 1]^2``)."""
     return (1.0 - ft) * ((1.0 - fs) * h00 + fs * h10) + ft * ((1.0 - fs) * h01 + fs * h11)
@@ -66,12 +59,13 @@ def tile_normal(normal, x0, y0, r, s, t):
 
 
 @njit(cache=True, inline="always")
-def _next_border(c, o, d):
-    """Ray parameter where coordinate ``o + t d`` leaves cell ``[c, c+1]`` (inf if never)."""
+def _border(c, o, d, inv):
+    """Ray parameter where coordinate ``o + t d`` leaves cell ``[c, c+1]`` (inf if never);
+    ``inv = 1 / d``, taken once per tile: the search steps cells without a division."""
     if d > 0.0:
-        return (c + 1.0 - o) / d
+        return (c + 1.0 - o) * inv
     if d < 0.0:
-        return (c - o) / d
+        return (c - o) * inv
     return math.inf
 
 
@@ -104,20 +98,29 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     du = dx * vx + dy * vy + dz * vz
     h0 = rx * wx + ry * wy + rz * wz
     dh = dx * wx + dy * wy + dz * wz
-    ta, tb = _slab_tile(s0, ds, 0.0, r - 1.0, t_min, t_max)
-    ta, tb = _slab_tile(u0, du, 0.0, r - 1.0, ta, tb)
-    ta, tb = _slab_tile(h0, dh, tile_h[k, 0], tile_h[k, 1], ta, tb)
+    inv_s, flat_s = inverse(ds)
+    inv_u, flat_u = inverse(du)
+    inv_h, flat_h = inverse(dh)
+    ta, tb = slab(h0, inv_h, flat_h, tile_h[k, 0], tile_h[k, 1], t_min, t_max)
+    ta, tb = slab(s0, inv_s, flat_s, 0.0, r - 1.0, ta, tb)
+    ta, tb = slab(u0, inv_u, flat_u, 0.0, r - 1.0, ta, tb)
     if ta > tb:
         return math.inf, 0.0, 0.0
-    # The cell holding the segment's midpoint-side start (clamped: the entry
-    # point may sit exactly on the far border).
+    # The cell holding the segment's start (clamped: the entry point may sit
+    # exactly on the far border).
     t = ta
     i = min(max(int(math.floor(s0 + t * ds)), 0), r - 2)
     j = min(max(int(math.floor(u0 + t * du)), 0), r - 2)
+    step_i = 1 if ds > 0.0 else -1
+    step_j = 1 if du > 0.0 else -1
+    # Where the ray leaves the current cell's column and row: recomputed from the
+    # cell index at each step (not accumulated), so rounding does not drift.
+    t_i = _border(i, s0, ds, inv_s)
+    t_j = _border(j, u0, du, inv_u)
     f_in = 0.0
     have_f_in = False  # f at the entry point, carried over from the previous valid cell
     for _ in range(2 * r + 2):
-        t_exit = min(_next_border(i, s0, ds), _next_border(j, u0, du), tb)
+        t_exit = min(t_i, t_j, tb)
         if t_exit < t:
             t_exit = t
         h00 = depth[y0 + j, x0 + i]
@@ -152,11 +155,15 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
         if t_exit >= tb:
             break
         # Step into the neighbour across the nearer border.
-        if _next_border(i, s0, ds) <= _next_border(j, u0, du):
-            i += 1 if ds > 0.0 else -1
+        if t_i <= t_j:
+            i += step_i
+            if i < 0 or i > r - 2:
+                break
+            t_i = _border(i, s0, ds, inv_s)
         else:
-            j += 1 if du > 0.0 else -1
-        if i < 0 or i > r - 2 or j < 0 or j > r - 2:
-            break
+            j += step_j
+            if j < 0 or j > r - 2:
+                break
+            t_j = _border(j, u0, du, inv_u)
         t = t_exit
     return math.inf, 0.0, 0.0

@@ -3,8 +3,9 @@
 A :class:`SurfaceIndex` is a BVH whose leaves are triangles or discs (exact) or
 height-field tiles in an atlas (approximate); the exact BVH has no tiles, the
 hybrid RBVH has both. In the binary layout one traversal kernel serves every
-kind (:func:`._bvh_kernels.closest_hit`); the exact BVH of a mesh is by default
-in the 4-wide layout instead (:mod:`.wide`, traversed by :mod:`._wide_kernels`).
+kind (:func:`._bvh_kernels.closest_hit`); by default the exact BVH of a mesh is
+in the 4-wide layout instead (:mod:`.wide`, traversed by :mod:`._wide_kernels`),
+and so is the RBVH (:mod:`.rbvh_wide`, traversed by :mod:`._rbvh_wide_kernels`).
 """
 
 from __future__ import annotations
@@ -16,7 +17,9 @@ import numpy as np
 
 from ..errors import ParameterError
 from ._bvh_kernels import TILE_LEAF, cast_primary, cast_rays
+from ._rbvh_wide_kernels import cast_primary_rbvh_wide, cast_rays_rbvh_wide
 from ._wide_kernels import cast_primary_wide, cast_rays_wide
+from .rbvh_wide import WideRBVH
 from .wide import WideBVH
 
 __all__ = ["SurfaceIndex", "Hits", "RayCast", "raycast", "empty_atlas_arrays"]
@@ -44,7 +47,7 @@ class SurfaceIndex:
     node_bounds : (n, 2, 3) float32
     node_child, node_count : (n,) int32
         The binary layout; see :mod:`._bvh_kernels` for the encoding. Empty
-        (``n = 0``) when the index is in the wide layout (``wide``).
+        (``n = 0``) when the index is in a wide layout (``wide`` or ``wide_rbvh``).
     tris : (k, 3, 3) float32
         Triangles of the triangle leaves in leaf order; ``tri_face`` maps them to
         mesh faces (for normals). Empty in the wide layout.
@@ -59,11 +62,15 @@ class SurfaceIndex:
         centre, unit normal, radius; ``disc_point`` (d,) int32 maps them to the
         cloud's points.
     depth : int
-        Tree depth (the traversal stack size).
+        Depth of the binary tree (the binary traversal's stack size).
     mip_levels : int
         Tile rows ``k + L n_leaf_tiles`` hold mip level ``L`` of leaf tile ``k``.
     build : dict
         ``ms`` and per-phase milliseconds, plus builder parameters.
+    wide : WideBVH, optional
+        The exact BVH's 4-wide layout (triangles in packets).
+    wide_rbvh : WideRBVH, optional
+        The RBVH's 4-wide layout (its leaves index ``tris`` and the tile arrays).
     """
 
     kind: str
@@ -87,16 +94,21 @@ class SurfaceIndex:
     discs: np.ndarray = field(default_factory=lambda: np.zeros((0, 7), np.float32))
     disc_point: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     wide: WideBVH | None = None
+    wide_rbvh: WideRBVH | None = None
 
     @property
     def layout(self) -> str:
-        """``"wide"`` (4-wide triangle BVH) or ``"binary"``."""
-        return "binary" if self.wide is None else "wide"
+        """``"wide"`` (4-wide nodes) or ``"binary"``."""
+        return "binary" if self.wide is None and self.wide_rbvh is None else "wide"
 
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float32: the box of everything the index holds."""
-        return self.node_bounds[0] if self.wide is None else self.wide.root
+        if self.wide is not None:
+            return self.wide.root
+        if self.wide_rbvh is not None:
+            return self.wide_rbvh.root
+        return self.node_bounds[0]
 
     @property
     def center(self) -> np.ndarray:
@@ -117,6 +129,11 @@ class SurfaceIndex:
                 self.faces, self.vnormals, self.tile_proj, self.tile_h, self.tile_rect,
                 self.atlas_depth, self.atlas_normal, self.discs, self.disc_point)
 
+    def _rbvh_wide_args(self) -> tuple:
+        w = self.wide_rbvh
+        return (w.nodes, w.nodes.view(np.int32), self.tris, self.tri_face, self.faces, self.vnormals,
+                self.tile_proj, self.tile_h, self.tile_rect, self.atlas_depth, self.atlas_normal)
+
     def ray_call(self, origins: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float,
                  footprint: tuple[float, float], out: tuple) -> tuple[Any, tuple]:
         """``(kernel, args)``: ``kernel(*args)`` casts rays ``origins``, ``dirs`` (n, 3) float64
@@ -125,6 +142,10 @@ class SurfaceIndex:
             w = self.wide
             return cast_rays_wide, (*w.kernel_args(), self.faces, self.vnormals,
                                     origins, dirs, t_min, t_max, w.stack_size, *out)
+        if self.wide_rbvh is not None:
+            return cast_rays_rbvh_wide, (*self._rbvh_wide_args(), origins, dirs, t_min, t_max,
+                                         self.wide_rbvh.stack_size, footprint[0], footprint[1],
+                                         self.mip_levels, *out)
         return cast_rays, (*self.kernel_args(), origins, dirs, t_min, t_max, self.depth + 2,
                            footprint[0], footprint[1], self.mip_levels, *out)
 
@@ -135,12 +156,17 @@ class SurfaceIndex:
             w = self.wide
             return cast_primary_wide, (*w.kernel_args(), self.faces, self.vnormals,
                                        params, width, height, w.stack_size, *out)
+        if self.wide_rbvh is not None:
+            return cast_primary_rbvh_wide, (*self._rbvh_wide_args(), params, width, height,
+                                            self.wide_rbvh.stack_size, self.mip_levels, *out)
         return cast_primary, (*self.kernel_args(), params, width, height, self.depth + 2, self.mip_levels, *out)
 
     def nbytes(self) -> dict[str, int]:
         """Bytes of the tree, the triangles it stores, the atlas and the shading data."""
         tiles = self.n_tiles > 0
         wide = self.wide.nbytes() if self.wide is not None else {"nodes": 0, "triangles": 0}
+        if self.wide_rbvh is not None:
+            wide["nodes"] += self.wide_rbvh.nbytes()
         return {
             "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes) + wide["nodes"],
             "triangles": int(self.tris.nbytes + self.tri_face.nbytes) + wide["triangles"],
@@ -156,10 +182,14 @@ class SurfaceIndex:
         c = self.node_count
         b = self.nbytes()
         w = self.wide
+        n_nodes = len(c) if w is None else len(w.nodes)
+        if self.wide_rbvh is not None:
+            c = self.wide_rbvh.leaf_counts()  # the leaves' binary codes: the counts below still hold
+            n_nodes = len(self.wide_rbvh.nodes)
         out = {
             "kind": self.kind,
             "layout": self.layout,
-            "nodes": int(len(c)) if w is None else int(len(w.nodes)),
+            "nodes": int(n_nodes),
             "triangle_leaves": int((c > 0).sum()) if w is None else w.n_leaves,
             "tile_leaves": int((c == TILE_LEAF).sum()),
             "triangles": int(len(self.tris)) if w is None else int(np.count_nonzero(w.face4 >= 0)),
@@ -170,6 +200,7 @@ class SurfaceIndex:
             "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
             "atlas_shape": list(self.atlas_depth.shape) if self.n_tiles else [0, 0],
             "depth": self.depth if w is None else w.depth,
+            **({"wide_depth": self.wide_rbvh.depth} if self.wide_rbvh is not None else {}),
             "bytes": int(sum(b.values())),
             **{f"bytes_{k}": v for k, v in b.items()},
         }

@@ -34,8 +34,12 @@ from ._bvh_kernels import TILE_LEAF
 from .atlas import MIN_RES, build_atlas
 from .index import SurfaceIndex, empty_atlas_arrays
 from .mesh import PointCloud, TriangleMesh
+from .rbvh_wide import collapse_binary
 
-__all__ = ["Quality", "QUALITY", "build_rbvh", "resolution_cap"]
+__all__ = ["Quality", "QUALITY", "build_rbvh", "resolution_cap", "LAYOUTS"]
+
+#: traversal layouts of :func:`build_rbvh` (the first is the default)
+LAYOUTS = ("wide", "binary")
 
 
 @dataclass(frozen=True)
@@ -148,7 +152,7 @@ class _Nodes:
 def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2", *, split: str = "sah",
                hybrid: bool = True, rays: str = "coherent", bins: int = 16, max_depth: int = 64,
                curvature_deg: float | None = None, cone_tolerance: float = 0.01,
-               overlap: float = 0.0, mip_levels: int = 1) -> SurfaceIndex:
+               overlap: float = 0.0, mip_levels: int = 1, layout: str = "wide") -> SurfaceIndex:
     """Build a rasterized BVH (hybrid by default) over a triangle mesh or a point cloud.
 
     Parameters
@@ -188,6 +192,10 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
     mip_levels : int
         Atlas levels, each half the resolution of the one before (1: none). Camera
         rays pick the level whose texel matches their pixel footprint.
+    layout : {"wide", "binary"}
+        Traversal layout: the binary tree collapsed to 4-wide nodes
+        (:mod:`sparsecast.surface.rbvh_wide`: fewer, vectorised node visits; the
+        default), or the binary tree itself. Same leaves, same hits.
 
     Returns
     -------
@@ -208,6 +216,8 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         raise ParameterError(f"mip_levels: expected 1..8, got {mip_levels}")
     if not 4 <= max_depth <= 256:
         raise ParameterError(f"max_depth: expected 4..256, got {max_depth}")
+    if layout not in LAYOUTS:
+        raise ParameterError(f"layout: expected one of {', '.join(LAYOUTS)}, got {layout!r}")
     r_cap = resolution_cap(q.rho, rays)
     is_mesh = isinstance(surface, TriangleMesh)
     if not is_mesh:
@@ -348,6 +358,13 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
     tic = time.perf_counter()
     K.refit(node_bounds, node_child, node_count)
     phases["refit"] = time.perf_counter() - tic
+    wide = None
+    if layout == "wide":
+        tic = time.perf_counter()
+        wide = collapse_binary(node_bounds, node_child, node_count)
+        node_bounds = np.zeros((0, 2, 3), np.float32)
+        node_child, node_count = np.zeros(0, np.int32), np.zeros(0, np.int32)
+        phases["collapse"] = time.perf_counter() - tic
     tri_ids = np.concatenate(tri_refs).astype(np.int32) if tri_refs else np.zeros(0, np.int32)
     if is_mesh:
         tris = np.ascontiguousarray(surface.triangles[tri_ids], dtype=np.float32)
@@ -362,8 +379,9 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
              **{f"phase_{k}_ms": v * 1e3 for k, v in phases.items()},
              "quality": q.__dict__ | {"name": quality if isinstance(quality, str) else None},
              "split": split, "hybrid": hybrid, "overlap": overlap, "rays": rays, "resolution_cap": r_cap,
+             "layout": layout,
              "refs_per_level": [c for _, c in level_stats]}
     return SurfaceIndex(
         kind="rbvh", source=surface, node_bounds=node_bounds, node_child=node_child, node_count=node_count,
         tris=tris, tri_face=tri_ids, faces=faces, vnormals=vnormals, depth=depth, build=build,
-        mip_levels=mip_levels if tile_nodes else 1, **atlas_arrays)
+        mip_levels=mip_levels if tile_nodes else 1, wide_rbvh=wide, **atlas_arrays)

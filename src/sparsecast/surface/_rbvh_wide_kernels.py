@@ -1,0 +1,174 @@
+"""Closest-hit traversal of the 4-wide RBVH (layout: :mod:`._rbvh_wide_build_kernels`).
+
+Inner nodes as in the exact wide BVH (:mod:`._wide_kernels`): the four child
+boxes of a node are met in one loop over the SoA rows, near and far planes picked
+once per ray from the direction's signs, widened by :data:`._wide_kernels.ROBUST`;
+the children the ray enters go on the stack sorted by entry distance, nearest on
+top, and an entry farther than the best hit so far is dropped when popped.
+
+Leaves go on the same stack as ``-1 - (WIDTH node + slot)``, so a leaf is opened in
+order of its box's entry distance like any child, and its entry distance (kept
+on the stack) picks the mip level of a tile as the binary kernel does. Leaf
+tests are the binary kernel's: the height-field search of
+:func:`._rbvh_kernels.tile_hit` and the two-sided Möller–Trumbore test of
+:func:`._bvh_kernels.intersect_triangle`, so both layouts find the same hits.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..kernels.borrow import borrowed, keep_alive
+from ..kernels.camera import primary_ray
+from ..kernels.tiles import tile_bounds, tile_count
+from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
+from ._rbvh_wide_build_kernels import WIDTH
+from ._rbvh_kernels import tile_hit
+from ._wide_kernels import ROBUST, _inv, slab_origins
+
+#: rays per parallel work item of the batch driver
+RAY_CHUNK = 64
+
+
+def stack_size(depth: int) -> int:
+    """Stack entries a ray needs in a wide tree of ``depth`` levels (``WIDTH - 1`` siblings wait
+    per level, and the deepest node's children may all be leaves)."""
+    return (WIDTH - 1) * int(depth) + WIDTH + 1
+
+
+@njit(cache=True, inline="always")
+def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+                          atlas_depth, atlas_normal, ox, oy, oz, dx, dy, dz, t_min, t_max,
+                          st_node, st_t, lane_t, fp0, spread, n_levels):
+    """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (WIDTH,) float64.
+
+    ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
+    (:attr:`.rbvh_wide.WideRBVH.nodes`). Returns ``(t, nx, ny, nz, face, tile, a, b)``
+    as :func:`._bvh_kernels.closest_hit`.
+    """
+    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    # Offsets of the near and far box rows per axis (row r of a node starts at r * WIDTH).
+    nxr, fxr = (0, 3 * WIDTH) if ix >= 0.0 else (3 * WIDTH, 0)
+    nyr, fyr = (WIDTH, 4 * WIDTH) if iy >= 0.0 else (4 * WIDTH, WIDTH)
+    nzr, fzr = (2 * WIDTH, 5 * WIDTH) if iz >= 0.0 else (5 * WIDTH, 2 * WIDTH)
+    onx, ofx = slab_origins(ox, dx)
+    ony, ofy = slab_origins(oy, dy)
+    onz, ofz = slab_origins(oz, dz)
+    n_tiles = tile_rect.shape[0] // n_levels
+    best = t_max
+    face = -1
+    best_k = -1
+    tile = -1
+    ha = hb = 0.0
+    sp = 1
+    st_node[0] = 0
+    st_t[0] = t_min
+    while sp > 0:
+        sp -= 1
+        t_entry = st_t[sp]
+        if t_entry > best:
+            continue
+        entry = st_node[sp]
+        if entry >= 0:
+            node = entry
+            sp0 = sp
+            for c in range(WIDTH):
+                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
+                         max((box[node, nzr + c] - onz) * iz, t_min))
+                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
+                         (box[node, fzr + c] - ofz) * iz) * ROBUST
+                lane_t[c] = tn if tn <= min(tf, best) else math.inf
+            for c in range(WIDTH):
+                t = lane_t[c]
+                if t == math.inf:
+                    continue
+                code = child[node, 6 * WIDTH + c] if child[node, 7 * WIDTH + c] == 0 else -1 - (WIDTH * node + c)
+                # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
+                j = sp
+                while j > sp0 and st_t[j - 1] < t:
+                    st_node[j] = st_node[j - 1]
+                    st_t[j] = st_t[j - 1]
+                    j -= 1
+                st_node[j] = code
+                st_t[j] = t
+                sp += 1
+            continue
+        slot = -1 - entry
+        node, c = slot // WIDTH, slot % WIDTH
+        first = child[node, 6 * WIDTH + c]
+        count = child[node, 7 * WIDTH + c]
+        if count > 0:
+            for k in range(first, first + count):
+                t, u, v = intersect_triangle(tris, k, ox, oy, oz, dx, dy, dz, t_min, best)
+                if t < best:
+                    best, face, best_k, tile, ha, hb = t, tri_face[k], k, -1, u, v
+        elif count == TILE_LEAF:
+            k = first
+            if n_levels > 1:
+                k = mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles)
+            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
+            if t < best:
+                best, face, best_k, tile, ha, hb = t, -1, -1, k, s, u
+    if face < 0 and tile < 0:
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    nx, ny, nz = hit_normal(faces, vnormals, tile_rect, atlas_normal, best_k, tile, ha, hb)
+    return best, nx, ny, nz, face, tile, ha, hb
+
+
+@njit(cache=True, parallel=True)
+def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+                        atlas_depth, atlas_normal, origins, dirs, t_min, t_max, n_stack, fp0, spread, n_levels,
+                        out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`.
+
+    ``fp0 + spread * t`` is the rays' footprint for mip selection (0, 0: finest).
+    """
+    n = origins.shape[0]
+    n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
+    for ck in prange(n_chunks):
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
+        # Borrowed views: owned arrays passed per ray cost atomic reference counts (kernels.borrow).
+        bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
+            (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
+        st_node, st_t, lane_t = borrowed(scratch)
+        for r in range(ck * RAY_CHUNK, min(n, (ck + 1) * RAY_CHUNK)):
+            t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
+                bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, origins[r, 0], origins[r, 1], origins[r, 2],
+                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_t, fp0, spread, n_levels)
+            out_t[r] = t
+            out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
+            out_face[r], out_tile[r] = f, tl
+            out_uv[r, 0], out_uv[r, 1] = a, b
+        keep_alive(scratch)
+
+
+@njit(cache=True, parallel=True)
+def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+                           atlas_depth, atlas_normal, params, width, height, n_stack, n_levels,
+                           out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
+    :func:`._bvh_kernels.cast_primary`)."""
+    # A pixel's footprint: its angle times the distance (perspective) or its fixed width (orthographic).
+    pixel = 2.0 * math.sqrt(params[9] * params[9] + params[10] * params[10] + params[11] * params[11]) / height
+    fp0 = 0.0 if params[12] != 0.0 else pixel
+    spread = pixel if params[12] != 0.0 else 0.0
+    for tile in prange(tile_count(width, height)):
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
+        bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
+            (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
+        st_node, st_t, lane_t = borrowed(scratch)
+        x0, x1, y0, y1 = tile_bounds(tile, width, height)
+        for py in range(y0, y1):
+            for px in range(x0, x1):
+                ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
+                t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
+                    bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
+                    st_node, st_t, lane_t, fp0, spread, n_levels)
+                out_t[py, px] = t
+                out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
+                out_face[py, px], out_tile[py, px] = f, tl
+                out_uv[py, px, 0], out_uv[py, px, 1] = a, b
+        keep_alive(scratch)
