@@ -28,13 +28,17 @@ from numba import njit, prange
 
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import primary_ray
+from ..kernels.simd import slab4
 from ..kernels.tiles import tile_bounds, tile_count
 from ._wide_build_kernels import LEAF_SHIFT
 
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
-#: far-plane widening of the box test: covers the float64 rounding of (plane - o) / d
-ROBUST = 1.0 + 2.0 ** -48
+#: far-plane widening of the float32 box test: 16 float32 ulps, over the 7 that the
+#: roundings of 1 / d, its widening, plane - o and the product can cost
+ROBUST32 = 1.0 + 2.0 ** -20
+#: direction components below this (of a unit vector) count as zero
+D_FLUSH = 2.0 ** -60
 
 
 def stack_size(depth: int) -> int:
@@ -67,25 +71,80 @@ def slab_origins(o, d):
 
 
 @njit(cache=True, inline="always")
+def _f32(x, up):
+    """``x`` rounded to float32 upwards (``up``) or downwards, never to nearest."""
+    f = np.float32(x)
+    if up:
+        if f < x:
+            f = np.nextafter(f, np.float32(np.inf))
+    elif f > x:
+        f = np.nextafter(f, np.float32(-np.inf))
+    return f
+
+
+@njit(cache=True, inline="always")
+def slab_origins32(o, d):
+    """Float32 origin coordinates for the near and the far plane of a float32 slab test.
+
+    The box test runs in float32 while the ray is float64, so the origin is rounded
+    *towards safety*: for the near plane in the direction of ``d`` (the entry
+    distance can only come out smaller), for the far plane against it (the exit
+    only larger). With ``d = 0`` both move strictly into the slab, the float32 form
+    of :func:`slab_origins`: a ray running in a face plane is inside.
+    """
+    if d > 0.0:
+        return _f32(o, True), _f32(o, False)
+    if d < 0.0:
+        return _f32(o, False), _f32(o, True)
+    f = np.float32(o)
+    near = f if f > o else np.nextafter(f, np.float32(np.inf))
+    far = f if f < o else np.nextafter(f, np.float32(-np.inf))
+    return near, far
+
+
+@njit(cache=True, inline="always")
+def _cull(best):
+    """Float32 bound of the entry distances still worth visiting when the best hit is at ``best``."""
+    return _f32(best * ROBUST32, True)
+
+
+@njit(cache=True, inline="always")
 def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, dy, dz, t_min, t_max,
-                     st_node, st_t, lane_t):
-    """Nearest triangle hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (8,) float64.
+                     st_node, st_t, lane_b, lane_t):
+    """Nearest triangle hit in ``[t_min, t_max]``.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.wide.WideBVH.nodes`): boxes at ``4 row + c``, children at ``24 + c``.
+    Scratch: ``st_node`` (s,) int32, ``st_t`` (s,) float32, ``lane_b`` (4,) float32,
+    ``lane_t`` (8,) float64.
 
     Returns ``(t, nx, ny, nz, face, -1, a, b)`` as :func:`._bvh_kernels.closest_hit`
     (``t = inf`` on a miss; unit shading normal; barycentrics ``a, b`` of
     vertices 1 and 2).
     """
+    # A component below 2^-60 of a unit vector is under the rounding of the others:
+    # zero makes the ray exactly axis-parallel for both tests and keeps 1/d finite in float32.
+    if abs(dx) < D_FLUSH:
+        dx = 0.0
+    if abs(dy) < D_FLUSH:
+        dy = 0.0
+    if abs(dz) < D_FLUSH:
+        dz = 0.0
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
     nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
     nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
     nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
-    onx, ofx = slab_origins(ox, dx)
-    ony, ofy = slab_origins(oy, dy)
-    onz, ofz = slab_origins(oz, dz)
+    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
+    onx, ofx = slab_origins32(ox, dx)
+    ony, ofy = slab_origins32(oy, dy)
+    onz, ofz = slab_origins32(oz, dz)
+    org = (onx, ony, onz, ofx, ofy, ofz)
+    # Far planes scaled by ROBUST32: float32 rounding of 1 / d, the subtraction and
+    # the product never makes the exit come out before the entry (Ize 2013).
+    inv = (np.float32(ix), np.float32(iy), np.float32(iz),
+           np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
+    t_lo = _f32(t_min, False)
     # Watertight test set-up: kz the dominant axis, shear onto it.
     ax_, ay_, az_ = abs(dx), abs(dy), abs(dz)
     if ax_ >= ay_ and ax_ >= az_:
@@ -102,86 +161,92 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
     sx, sy, sz = d_k[kx] / dkz, d_k[ky] / dkz, 1.0 / dkz
     okx, oky, okz = o_k[kx], o_k[ky], o_k[kz]
     best = t_max
-    face = -1
-    ha = hb = 0.0
-    sp = 1
-    st_node[0] = 0
-    st_t[0] = t_min
-    while sp > 0:
-        sp -= 1
-        if st_t[sp] > best:
-            continue
-        node = st_node[sp]
+    hi = _cull(best)
+    best_p = -1
+    best_lane = 0
+    best_det = 0.0
+    sp = 0
+    node = 0
+    while True:
         if node >= 0:
-            sp0 = sp
-            for c in range(4):
-                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
-                         max((box[node, nzr + c] - onz) * iz, t_min))
-                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
-                         (box[node, fzr + c] - ofz) * iz) * ROBUST
-                lane_t[c] = tn if tn <= min(tf, best) else math.inf
-            for c in range(4):
-                t = lane_t[c]
-                if t == math.inf:
-                    continue
-                # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
-                j = sp
-                while j > sp0 and st_t[j - 1] < t:
-                    st_node[j] = st_node[j - 1]
-                    st_t[j] = st_t[j - 1]
-                    j -= 1
-                st_node[j] = child[node, 24 + c]
-                st_t[j] = t
-                sp += 1
-            continue
-        code = -1 - node
-        p0 = code >> LEAF_SHIFT
-        for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
-            for lane in range(4):
-                vax = tri4[p, kx, lane] - okx
-                vay = tri4[p, ky, lane] - oky
-                vaz = tri4[p, kz, lane] - okz
-                vbx = tri4[p, 3 + kx, lane] - okx
-                vby = tri4[p, 3 + ky, lane] - oky
-                vbz = tri4[p, 3 + kz, lane] - okz
-                vcx = tri4[p, 6 + kx, lane] - okx
-                vcy = tri4[p, 6 + ky, lane] - oky
-                vcz = tri4[p, 6 + kz, lane] - okz
-                a_x, a_y = vax - sx * vaz, vay - sy * vaz
-                b_x, b_y = vbx - sx * vbz, vby - sy * vbz
-                c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
-                u = c_x * b_y - c_y * b_x
-                v = a_x * c_y - a_y * c_x
-                w = b_x * a_y - b_y * a_x
-                det = u + v + w
-                inside = ((u >= 0.0) & (v >= 0.0) & (w >= 0.0)) | ((u <= 0.0) & (v <= 0.0) & (w <= 0.0))
-                t = sz * (u * vaz + v * vbz + w * vcz) / det if det != 0.0 else math.inf
-                ok = inside & (t >= t_min) & (t <= best)
-                lane_t[lane] = t if ok else math.inf
-                lane_t[4 + lane] = det
-            for lane in range(4):
-                t = lane_t[lane]
-                if t < best:
-                    best = t
-                    face = face4[p, lane]
-                    # Barycentrics of vertices 1 and 2: their edge functions over det.
-                    det = lane_t[4 + lane]
+            mask = slab4(box, node, rows, org, inv, t_lo, hi, lane_b)
+            if mask != 0:
+                # Entered children onto the stack in decreasing entry distance, then
+                # straight into the nearest (it was just tested against the best hit).
+                sp0 = sp
+                for c in range(4):
+                    if mask & (1 << c):
+                        t = lane_b[c]
+                        j = sp
+                        while j > sp0 and st_t[j - 1] < t:
+                            st_node[j] = st_node[j - 1]
+                            st_t[j] = st_t[j - 1]
+                            j -= 1
+                        st_node[j] = child[node, 24 + c]
+                        st_t[j] = t
+                        sp += 1
+                sp -= 1
+                node = st_node[sp]
+                continue
+        else:
+            code = -1 - node
+            p0 = code >> LEAF_SHIFT
+            for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
+                for lane in range(4):
                     vax = tri4[p, kx, lane] - okx
                     vay = tri4[p, ky, lane] - oky
                     vaz = tri4[p, kz, lane] - okz
-                    vcx = tri4[p, 6 + kx, lane] - okx
-                    vcy = tri4[p, 6 + ky, lane] - oky
-                    vcz = tri4[p, 6 + kz, lane] - okz
                     vbx = tri4[p, 3 + kx, lane] - okx
                     vby = tri4[p, 3 + ky, lane] - oky
                     vbz = tri4[p, 3 + kz, lane] - okz
+                    vcx = tri4[p, 6 + kx, lane] - okx
+                    vcy = tri4[p, 6 + ky, lane] - oky
+                    vcz = tri4[p, 6 + kz, lane] - okz
                     a_x, a_y = vax - sx * vaz, vay - sy * vaz
                     b_x, b_y = vbx - sx * vbz, vby - sy * vbz
                     c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
-                    ha = (a_x * c_y - a_y * c_x) / det
-                    hb = (b_x * a_y - b_y * a_x) / det
-    if face < 0:
+                    u = c_x * b_y - c_y * b_x
+                    v = a_x * c_y - a_y * c_x
+                    w = b_x * a_y - b_y * a_x
+                    det = u + v + w
+                    inside = ((u >= 0.0) & (v >= 0.0) & (w >= 0.0)) | ((u <= 0.0) & (v <= 0.0) & (w <= 0.0))
+                    t = sz * (u * vaz + v * vbz + w * vcz) / det if det != 0.0 else math.inf
+                    ok = inside & (t >= t_min) & (t <= best)
+                    lane_t[lane] = t if ok else math.inf
+                    lane_t[4 + lane] = det
+                for lane in range(4):
+                    t = lane_t[lane]
+                    if t < best:
+                        best = t
+                        best_p, best_lane, best_det = p, lane, lane_t[4 + lane]
+            hi = _cull(best)
+        # Pop the nearest waiting child that can still hold a closer hit.
+        while sp > 0:
+            sp -= 1
+            if st_t[sp] <= hi:
+                break
+        else:
+            break
+        node = st_node[sp]
+    if best_p < 0:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    # Barycentrics of vertices 1 and 2 (their edge functions over det), once for the winner.
+    p, lane = best_p, best_lane
+    vax = tri4[p, kx, lane] - okx
+    vay = tri4[p, ky, lane] - oky
+    vaz = tri4[p, kz, lane] - okz
+    vbx = tri4[p, 3 + kx, lane] - okx
+    vby = tri4[p, 3 + ky, lane] - oky
+    vbz = tri4[p, 3 + kz, lane] - okz
+    vcx = tri4[p, 6 + kx, lane] - okx
+    vcy = tri4[p, 6 + ky, lane] - oky
+    vcz = tri4[p, 6 + kz, lane] - okz
+    a_x, a_y = vax - sx * vaz, vay - sy * vaz
+    b_x, b_y = vbx - sx * vbz, vby - sy * vbz
+    c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
+    ha = (a_x * c_y - a_y * c_x) / best_det
+    hb = (b_x * a_y - b_y * a_x) / best_det
+    face = face4[p, lane]
     w = 1.0 - ha - hb
     f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
     nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
@@ -200,15 +265,16 @@ def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_mi
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for c in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
+                   np.empty(8))
         # Borrowed views: passing owned arrays to the per-ray call would cost two
         # atomic reference-count updates per array per ray (see kernels.borrow).
         bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b, lane_t = borrowed(scratch)
         for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
                 bx, ch, t4, f4, fa, vn, origins[r, 0], origins[r, 1], origins[r, 2],
-                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_t)
+                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, lane_t)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
             out_face[r], out_tile[r] = f, tl
@@ -222,15 +288,16 @@ def cast_primary_wide(box, child, tri4, face4, faces, vnormals, params, width, h
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
     :func:`._bvh_kernels.cast_primary`)."""
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
+                   np.empty(8))
         bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b, lane_t = borrowed(scratch)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
         for py in range(y0, y1):
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_t)
+                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, lane_t)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
                 out_face[py, px], out_tile[py, px] = f, tl
