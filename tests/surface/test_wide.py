@@ -40,7 +40,7 @@ def test_float32_origin_rounding_is_directed(rng):
             assert np.float32(near) == near and np.float32(far) == far  # float32 values
             assert (near >= o) if d > 0 else (near <= o)
             assert (far <= o) if d > 0 else (far >= o)
-            assert abs(near - o) <= np.spacing(np.float32(abs(o)))
+            assert abs(near - o) <= 4 * np.spacing(np.float32(abs(o)))  # a few ulps at most
         near, far = slab_origins32(o, 0.0)  # in the slab of a face plane through o
         assert far < o < near
 

@@ -1,11 +1,13 @@
 """Closest-hit traversal of the 4-wide triangle BVH (layout: :mod:`._wide_build_kernels`).
 
-Per wide node the ray meets all four child boxes in one loop over the SoA rows
-(the near and far planes per axis picked once per ray from the signs of its
-direction, so the loop has no min/max of plane pairs and LLVM vectorises it);
-the children it enters go on the stack sorted by entry distance, nearest on top,
-and a popped entry farther than the best hit so far is dropped. Leaves test
-packets of four triangles lane by lane in the same way.
+Per wide node the ray meets all four child boxes at once in float32 SIMD lanes
+(:func:`..kernels.simd.slab4`; the near and far planes per axis picked once per
+ray from the signs of its direction, so there is no min/max of plane pairs); the
+children it enters go on the stack sorted by entry distance and the nearest is
+entered at once, and a popped entry farther than the best hit so far is
+dropped. Leaves test packets of four triangles in float64 SIMD lanes
+(:func:`..kernels.simd.woop4`); the barycentrics and the shading normal are
+computed once, for the winner.
 
 **Watertight triangle test** (Woop, Benthin & Wald, JCGT 2013): the vertices are
 translated to the ray origin and sheared so that the ray runs along +z; the
@@ -13,10 +15,15 @@ three 2-D edge functions of a shared edge are then computed from the same
 numbers in opposite order, so they are exact negatives, and a ray through an
 edge or vertex of a closed mesh finds one of its triangles (no cracks); edge
 functions are in float64 (the float32 vertices' products are exact enough that
-no double-precision fallback is needed). Box tests are conservative: the far
-distance is widened by a few ulps (Ize 2013), so rounding never drops a box the
-ray touches, and a ray with a zero direction component that runs in a box's face
-plane counts as inside the slab (:func:`slab_origins`).
+no double-precision fallback is needed).
+
+**Conservative float32 box test** (Ize 2013): the ray is float64, the boxes
+float32. Each plane gets its own float32 origin, rounded so that entries can
+only come out earlier and exits later (:func:`slab_origins32`), the far planes'
+inverses are widened by :data:`ROBUST32` (16 unit roundoffs, over the 7 that the
+roundings cost), and the bound against the best hit is rounded up: rounding never drops a
+box the ray touches. A ray with a zero direction component that runs in a box's
+face plane counts as inside the slab (:func:`slab_origins`, :func:`slab_origins32`).
 """
 
 from __future__ import annotations
@@ -28,14 +35,14 @@ from numba import njit, prange
 
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import primary_ray
-from ..kernels.simd import slab4
+from ..kernels.simd import slab4, woop4
 from ..kernels.tiles import tile_bounds, tile_count
 from ._wide_build_kernels import LEAF_SHIFT
 
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
-#: far-plane widening of the float32 box test: 16 float32 ulps, over the 7 that the
-#: roundings of 1 / d, its widening, plane - o and the product can cost
+#: far-plane widening of the float32 box test: 16 float32 unit roundoffs (2^-24), over
+#: the 7 that the roundings of 1 / d, its widening, plane - o and the products cost
 ROBUST32 = 1.0 + 2.0 ** -20
 #: direction components below this (of a unit vector) count as zero
 D_FLUSH = 2.0 ** -60
@@ -71,14 +78,26 @@ def slab_origins(o, d):
 
 
 @njit(cache=True, inline="always")
+def _step32(f, s):
+    """Float32 ``f`` moved by two to four float32 ulps in the direction of ``s = +-1``.
+
+    Arithmetic instead of ``np.nextafter``, which compiles to a libm call (with
+    the vector registers spilled around it) per coordinate per ray: ``2^-22 |f|``
+    is two to four ulps, ``1e-38`` moves a zero; going further than the next
+    float32 only makes the box test a little more conservative.
+    """
+    return np.float32(f + s * (abs(f) * 2.0 ** -22 + 1e-38))
+
+
+@njit(cache=True, inline="always")
 def _f32(x, up):
-    """``x`` rounded to float32 upwards (``up``) or downwards, never to nearest."""
+    """``x`` as a float32 not below it (``up``) or not above it."""
     f = np.float32(x)
     if up:
         if f < x:
-            f = np.nextafter(f, np.float32(np.inf))
+            f = _step32(f, 1.0)
     elif f > x:
-        f = np.nextafter(f, np.float32(-np.inf))
+        f = _step32(f, -1.0)
     return f
 
 
@@ -97,8 +116,8 @@ def slab_origins32(o, d):
     if d < 0.0:
         return _f32(o, False), _f32(o, True)
     f = np.float32(o)
-    near = f if f > o else np.nextafter(f, np.float32(np.inf))
-    far = f if f < o else np.nextafter(f, np.float32(-np.inf))
+    near = f if f > o else _step32(f, 1.0)
+    far = f if f < o else _step32(f, -1.0)
     return near, far
 
 
@@ -160,6 +179,7 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
     dkz = d_k[kz]
     sx, sy, sz = d_k[kx] / dkz, d_k[ky] / dkz, 1.0 / dkz
     okx, oky, okz = o_k[kx], o_k[ky], o_k[kz]
+    axes, org_k, shear = (kx, ky, kz), (okx, oky, okz), (sx, sy, sz)
     best = t_max
     hi = _cull(best)
     best_p = -1
@@ -192,33 +212,12 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
             code = -1 - node
             p0 = code >> LEAF_SHIFT
             for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
-                for lane in range(4):
-                    vax = tri4[p, kx, lane] - okx
-                    vay = tri4[p, ky, lane] - oky
-                    vaz = tri4[p, kz, lane] - okz
-                    vbx = tri4[p, 3 + kx, lane] - okx
-                    vby = tri4[p, 3 + ky, lane] - oky
-                    vbz = tri4[p, 3 + kz, lane] - okz
-                    vcx = tri4[p, 6 + kx, lane] - okx
-                    vcy = tri4[p, 6 + ky, lane] - oky
-                    vcz = tri4[p, 6 + kz, lane] - okz
-                    a_x, a_y = vax - sx * vaz, vay - sy * vaz
-                    b_x, b_y = vbx - sx * vbz, vby - sy * vbz
-                    c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
-                    u = c_x * b_y - c_y * b_x
-                    v = a_x * c_y - a_y * c_x
-                    w = b_x * a_y - b_y * a_x
-                    det = u + v + w
-                    inside = ((u >= 0.0) & (v >= 0.0) & (w >= 0.0)) | ((u <= 0.0) & (v <= 0.0) & (w <= 0.0))
-                    t = sz * (u * vaz + v * vbz + w * vcz) / det if det != 0.0 else math.inf
-                    ok = inside & (t >= t_min) & (t <= best)
-                    lane_t[lane] = t if ok else math.inf
-                    lane_t[4 + lane] = det
-                for lane in range(4):
-                    t = lane_t[lane]
-                    if t < best:
-                        best = t
-                        best_p, best_lane, best_det = p, lane, lane_t[4 + lane]
+                if woop4(tri4, p, axes, org_k, shear, t_min, best, lane_t):
+                    for lane in range(4):
+                        t = lane_t[lane]
+                        if t < best:
+                            best = t
+                            best_p, best_lane, best_det = p, lane, lane_t[4 + lane]
             hi = _cull(best)
         # Pop the nearest waiting child that can still hold a closer hit.
         while sp > 0:
