@@ -159,8 +159,8 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
     ony, ofy = slab_origins32(oy, dy)
     onz, ofz = slab_origins32(oz, dz)
     org = (onx, ony, onz, ofx, ofy, ofz)
-    # Far planes scaled by ROBUST32: float32 rounding of 1 / d, the subtraction and
-    # the product never makes the exit come out before the entry (Ize 2013).
+    # Far planes scaled by ROBUST32, so that the float32 rounding of 1 / d, of the
+    # subtraction and of the product never puts the exit before the entry (Ize 2013).
     inv = (np.float32(ix), np.float32(iy), np.float32(iz),
            np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
     t_lo = _f32(t_min, False)

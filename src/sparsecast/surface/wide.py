@@ -1,10 +1,11 @@
 """The 4-wide triangle BVH: the traversal layout the exact BVH of a mesh uses by default.
 
-Built by collapsing the binary SAH build tree (:mod:`.sah`) four children per
-node (:mod:`._wide_build_kernels`, which describes the layout) and traversed by
-:mod:`._wide_kernels`: four slab tests per node in one vectorisable loop, the
+Built by collapsing the binary SAH build tree (:mod:`.sah`) into nodes of up to
+four children, leaves and opened children chosen by the SAH
+(:mod:`._wide_build_kernels`, which describes the layout), and traversed by
+:mod:`._wide_kernels`: the four slab tests of a node in float32 vector lanes, the
 children visited nearest first, leaves as packets of four triangles tested
-together by the watertight ray-triangle test.
+together (float64 lanes) by the watertight ray-triangle test.
 """
 
 from __future__ import annotations
