@@ -13,6 +13,10 @@ from . import kernel_cache
 
 kernel_cache.configure()  # before any kernel module is imported (see kernel_cache)
 
+from .kernels.parallel import configure_wait_policy  # noqa: E402
+
+configure_wait_policy()  # before the OpenMP runtime loads (see kernels.parallel)
+
 from . import datasets  # noqa: E402
 from .camera import Camera
 from .elements import ParticleSet

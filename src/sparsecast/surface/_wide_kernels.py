@@ -1,11 +1,13 @@
 """Closest-hit traversal of the 4-wide triangle BVH (layout: :mod:`._wide_build_kernels`).
 
-Per wide node the ray meets all four child boxes in one loop over the SoA rows
-(the near and far planes per axis picked once per ray from the signs of its
-direction, so the loop has no min/max of plane pairs and LLVM vectorises it);
-the children it enters go on the stack sorted by entry distance, nearest on top,
-and a popped entry farther than the best hit so far is dropped. Leaves test
-packets of four triangles lane by lane in the same way.
+Per wide node the ray meets all four child boxes at once in float32 SIMD lanes
+(:func:`..kernels.simd.slab4`; the near and far planes per axis picked once per
+ray from the signs of its direction, so there is no min/max of plane pairs); the
+children it enters go on the stack sorted by entry distance and the nearest is
+entered at once, and a popped entry farther than the best hit so far is
+dropped. Leaves test packets of four triangles in float64 SIMD lanes
+(:func:`..kernels.simd.woop4`); the barycentrics and the shading normal are
+computed once, for the winner.
 
 **Watertight triangle test** (Woop, Benthin & Wald, JCGT 2013): the vertices are
 translated to the ray origin and sheared so that the ray runs along +z; the
@@ -13,10 +15,15 @@ three 2-D edge functions of a shared edge are then computed from the same
 numbers in opposite order, so they are exact negatives, and a ray through an
 edge or vertex of a closed mesh finds one of its triangles (no cracks); edge
 functions are in float64 (the float32 vertices' products are exact enough that
-no double-precision fallback is needed). Box tests are conservative: the far
-distance is widened by a few ulps (Ize 2013), so rounding never drops a box the
-ray touches, and a ray with a zero direction component that runs in a box's face
-plane counts as inside the slab (:func:`slab_origins`).
+no double-precision fallback is needed).
+
+**Conservative float32 box test** (Ize 2013): the ray is float64, the boxes
+float32. Each plane gets its own float32 origin, rounded so that entries can
+only come out earlier and exits later (:func:`slab_origins32`), the far planes'
+inverses are widened by :data:`ROBUST32` (16 unit roundoffs, over the 7 that the
+roundings cost), and the bound against the best hit is rounded up: rounding never drops a
+box the ray touches. A ray with a zero direction component that runs in a box's
+face plane counts as inside the slab (:func:`slab_origins`, :func:`slab_origins32`).
 """
 
 from __future__ import annotations
@@ -28,13 +35,17 @@ from numba import njit, prange
 
 from ..kernels.borrow import borrowed, keep_alive
 from ..kernels.camera import primary_ray
+from ..kernels.simd import slab4, woop4
 from ..kernels.tiles import tile_bounds, tile_count
 from ._wide_build_kernels import LEAF_SHIFT
 
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
-#: far-plane widening of the box test: covers the float64 rounding of (plane - o) / d
-ROBUST = 1.0 + 2.0 ** -48
+#: far-plane widening of the float32 box test: 16 float32 unit roundoffs (2^-24), over
+#: the 7 that the roundings of 1 / d, its widening, plane - o and the products cost
+ROBUST32 = 1.0 + 2.0 ** -20
+#: direction components below this (of a unit vector) count as zero
+D_FLUSH = 2.0 ** -60
 
 
 def stack_size(depth: int) -> int:
@@ -67,25 +78,92 @@ def slab_origins(o, d):
 
 
 @njit(cache=True, inline="always")
+def _step32(f, s):
+    """Float32 ``f`` moved by two to four float32 ulps in the direction of ``s = +-1``.
+
+    Arithmetic instead of ``np.nextafter``, which compiles to a libm call (with
+    the vector registers spilled around it) per coordinate per ray: ``2^-22 |f|``
+    is two to four ulps, ``1e-38`` moves a zero; going further than the next
+    float32 only makes the box test a little more conservative.
+    """
+    return np.float32(f + s * (abs(f) * 2.0 ** -22 + 1e-38))
+
+
+@njit(cache=True, inline="always")
+def _f32(x, up):
+    """``x`` as a float32 not below it (``up``) or not above it."""
+    f = np.float32(x)
+    if up:
+        if f < x:
+            f = _step32(f, 1.0)
+    elif f > x:
+        f = _step32(f, -1.0)
+    return f
+
+
+@njit(cache=True, inline="always")
+def slab_origins32(o, d):
+    """Float32 origin coordinates for the near and the far plane of a float32 slab test.
+
+    The box test runs in float32 while the ray is float64, so the origin is rounded
+    *towards safety*: for the near plane in the direction of ``d`` (the entry
+    distance can only come out smaller), for the far plane against it (the exit
+    only larger). With ``d = 0`` both move strictly into the slab, the float32 form
+    of :func:`slab_origins`: a ray running in a face plane is inside.
+    """
+    if d > 0.0:
+        return _f32(o, True), _f32(o, False)
+    if d < 0.0:
+        return _f32(o, False), _f32(o, True)
+    f = np.float32(o)
+    near = f if f > o else _step32(f, 1.0)
+    far = f if f < o else _step32(f, -1.0)
+    return near, far
+
+
+@njit(cache=True, inline="always")
+def _cull(best):
+    """Float32 bound of the entry distances still worth visiting when the best hit is at ``best``."""
+    return _f32(best * ROBUST32, True)
+
+
+@njit(cache=True, inline="always")
 def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, dy, dz, t_min, t_max,
-                     st_node, st_t, lane_t):
-    """Nearest triangle hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (8,) float64.
+                     st_node, st_t, lane_b, lane_t):
+    """Nearest triangle hit in ``[t_min, t_max]``.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.wide.WideBVH.nodes`): boxes at ``4 row + c``, children at ``24 + c``.
+    Scratch: ``st_node`` (s,) int32, ``st_t`` (s,) float32, ``lane_b`` (4,) float32,
+    ``lane_t`` (8,) float64.
 
     Returns ``(t, nx, ny, nz, face, -1, a, b)`` as :func:`._bvh_kernels.closest_hit`
     (``t = inf`` on a miss; unit shading normal; barycentrics ``a, b`` of
     vertices 1 and 2).
     """
+    # A component below 2^-60 of a unit vector is under the rounding of the others:
+    # zero makes the ray exactly axis-parallel for both tests and keeps 1/d finite in float32.
+    if abs(dx) < D_FLUSH:
+        dx = 0.0
+    if abs(dy) < D_FLUSH:
+        dy = 0.0
+    if abs(dz) < D_FLUSH:
+        dz = 0.0
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
     nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
     nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
     nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
-    onx, ofx = slab_origins(ox, dx)
-    ony, ofy = slab_origins(oy, dy)
-    onz, ofz = slab_origins(oz, dz)
+    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
+    onx, ofx = slab_origins32(ox, dx)
+    ony, ofy = slab_origins32(oy, dy)
+    onz, ofz = slab_origins32(oz, dz)
+    org = (onx, ony, onz, ofx, ofy, ofz)
+    # Far planes scaled by ROBUST32, so that the float32 rounding of 1 / d, of the
+    # subtraction and of the product never puts the exit before the entry (Ize 2013).
+    inv = (np.float32(ix), np.float32(iy), np.float32(iz),
+           np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
+    t_lo = _f32(t_min, False)
     # Watertight test set-up: kz the dominant axis, shear onto it.
     ax_, ay_, az_ = abs(dx), abs(dy), abs(dz)
     if ax_ >= ay_ and ax_ >= az_:
@@ -101,87 +179,73 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
     dkz = d_k[kz]
     sx, sy, sz = d_k[kx] / dkz, d_k[ky] / dkz, 1.0 / dkz
     okx, oky, okz = o_k[kx], o_k[ky], o_k[kz]
+    axes, org_k, shear = (kx, ky, kz), (okx, oky, okz), (sx, sy, sz)
     best = t_max
-    face = -1
-    ha = hb = 0.0
-    sp = 1
-    st_node[0] = 0
-    st_t[0] = t_min
-    while sp > 0:
-        sp -= 1
-        if st_t[sp] > best:
-            continue
-        node = st_node[sp]
+    hi = _cull(best)
+    best_p = -1
+    best_lane = 0
+    best_det = 0.0
+    sp = 0
+    node = 0
+    while True:
         if node >= 0:
-            sp0 = sp
-            for c in range(4):
-                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
-                         max((box[node, nzr + c] - onz) * iz, t_min))
-                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
-                         (box[node, fzr + c] - ofz) * iz) * ROBUST
-                lane_t[c] = tn if tn <= min(tf, best) else math.inf
-            for c in range(4):
-                t = lane_t[c]
-                if t == math.inf:
-                    continue
-                # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
-                j = sp
-                while j > sp0 and st_t[j - 1] < t:
-                    st_node[j] = st_node[j - 1]
-                    st_t[j] = st_t[j - 1]
-                    j -= 1
-                st_node[j] = child[node, 24 + c]
-                st_t[j] = t
-                sp += 1
-            continue
-        code = -1 - node
-        p0 = code >> LEAF_SHIFT
-        for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
-            for lane in range(4):
-                vax = tri4[p, kx, lane] - okx
-                vay = tri4[p, ky, lane] - oky
-                vaz = tri4[p, kz, lane] - okz
-                vbx = tri4[p, 3 + kx, lane] - okx
-                vby = tri4[p, 3 + ky, lane] - oky
-                vbz = tri4[p, 3 + kz, lane] - okz
-                vcx = tri4[p, 6 + kx, lane] - okx
-                vcy = tri4[p, 6 + ky, lane] - oky
-                vcz = tri4[p, 6 + kz, lane] - okz
-                a_x, a_y = vax - sx * vaz, vay - sy * vaz
-                b_x, b_y = vbx - sx * vbz, vby - sy * vbz
-                c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
-                u = c_x * b_y - c_y * b_x
-                v = a_x * c_y - a_y * c_x
-                w = b_x * a_y - b_y * a_x
-                det = u + v + w
-                inside = ((u >= 0.0) & (v >= 0.0) & (w >= 0.0)) | ((u <= 0.0) & (v <= 0.0) & (w <= 0.0))
-                t = sz * (u * vaz + v * vbz + w * vcz) / det if det != 0.0 else math.inf
-                ok = inside & (t >= t_min) & (t <= best)
-                lane_t[lane] = t if ok else math.inf
-                lane_t[4 + lane] = det
-            for lane in range(4):
-                t = lane_t[lane]
-                if t < best:
-                    best = t
-                    face = face4[p, lane]
-                    # Barycentrics of vertices 1 and 2: their edge functions over det.
-                    det = lane_t[4 + lane]
-                    vax = tri4[p, kx, lane] - okx
-                    vay = tri4[p, ky, lane] - oky
-                    vaz = tri4[p, kz, lane] - okz
-                    vcx = tri4[p, 6 + kx, lane] - okx
-                    vcy = tri4[p, 6 + ky, lane] - oky
-                    vcz = tri4[p, 6 + kz, lane] - okz
-                    vbx = tri4[p, 3 + kx, lane] - okx
-                    vby = tri4[p, 3 + ky, lane] - oky
-                    vbz = tri4[p, 3 + kz, lane] - okz
-                    a_x, a_y = vax - sx * vaz, vay - sy * vaz
-                    b_x, b_y = vbx - sx * vbz, vby - sy * vbz
-                    c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
-                    ha = (a_x * c_y - a_y * c_x) / det
-                    hb = (b_x * a_y - b_y * a_x) / det
-    if face < 0:
+            mask = slab4(box, node, rows, org, inv, t_lo, hi, lane_b)
+            if mask != 0:
+                # Entered children onto the stack in decreasing entry distance, then
+                # straight into the nearest (it was just tested against the best hit).
+                sp0 = sp
+                for c in range(4):
+                    if mask & (1 << c):
+                        t = lane_b[c]
+                        j = sp
+                        while j > sp0 and st_t[j - 1] < t:
+                            st_node[j] = st_node[j - 1]
+                            st_t[j] = st_t[j - 1]
+                            j -= 1
+                        st_node[j] = child[node, 24 + c]
+                        st_t[j] = t
+                        sp += 1
+                sp -= 1
+                node = st_node[sp]
+                continue
+        else:
+            code = -1 - node
+            p0 = code >> LEAF_SHIFT
+            for p in range(p0, p0 + (code & ((1 << LEAF_SHIFT) - 1)) + 1):
+                if woop4(tri4, p, axes, org_k, shear, t_min, best, lane_t):
+                    for lane in range(4):
+                        t = lane_t[lane]
+                        if t < best:
+                            best = t
+                            best_p, best_lane, best_det = p, lane, lane_t[4 + lane]
+            hi = _cull(best)
+        # Pop the nearest waiting child that can still hold a closer hit.
+        while sp > 0:
+            sp -= 1
+            if st_t[sp] <= hi:
+                break
+        else:
+            break
+        node = st_node[sp]
+    if best_p < 0:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
+    # Barycentrics of vertices 1 and 2 (their edge functions over det), once for the winner.
+    p, lane = best_p, best_lane
+    vax = tri4[p, kx, lane] - okx
+    vay = tri4[p, ky, lane] - oky
+    vaz = tri4[p, kz, lane] - okz
+    vbx = tri4[p, 3 + kx, lane] - okx
+    vby = tri4[p, 3 + ky, lane] - oky
+    vbz = tri4[p, 3 + kz, lane] - okz
+    vcx = tri4[p, 6 + kx, lane] - okx
+    vcy = tri4[p, 6 + ky, lane] - oky
+    vcz = tri4[p, 6 + kz, lane] - okz
+    a_x, a_y = vax - sx * vaz, vay - sy * vaz
+    b_x, b_y = vbx - sx * vbz, vby - sy * vbz
+    c_x, c_y = vcx - sx * vcz, vcy - sy * vcz
+    ha = (a_x * c_y - a_y * c_x) / best_det
+    hb = (b_x * a_y - b_y * a_x) / best_det
+    face = face4[p, lane]
     w = 1.0 - ha - hb
     f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
     nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
@@ -200,15 +264,16 @@ def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_mi
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for c in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
+                   np.empty(8))
         # Borrowed views: passing owned arrays to the per-ray call would cost two
         # atomic reference-count updates per array per ray (see kernels.borrow).
         bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b, lane_t = borrowed(scratch)
         for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
                 bx, ch, t4, f4, fa, vn, origins[r, 0], origins[r, 1], origins[r, 2],
-                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_t)
+                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, lane_t)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
             out_face[r], out_tile[r] = f, tl
@@ -222,15 +287,16 @@ def cast_primary_wide(box, child, tri4, face4, faces, vnormals, params, width, h
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
     :func:`._bvh_kernels.cast_primary`)."""
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(8))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
+                   np.empty(8))
         bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b, lane_t = borrowed(scratch)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
         for py in range(y0, y1):
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_t)
+                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, lane_t)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
                 out_face[py, px], out_tile[py, px] = f, tl

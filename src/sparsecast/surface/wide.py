@@ -1,10 +1,11 @@
 """The 4-wide triangle BVH: the traversal layout the exact BVH of a mesh uses by default.
 
-Built by collapsing the binary SAH build tree (:mod:`.sah`) four children per
-node (:mod:`._wide_build_kernels`, which describes the layout) and traversed by
-:mod:`._wide_kernels`: four slab tests per node in one vectorisable loop, the
+Built by collapsing the binary SAH build tree (:mod:`.sah`) into nodes of up to
+four children, leaves and opened children chosen by the SAH
+(:mod:`._wide_build_kernels`, which describes the layout), and traversed by
+:mod:`._wide_kernels`: the four slab tests of a node in float32 vector lanes, the
 children visited nearest first, leaves as packets of four triangles tested
-together by the watertight ray-triangle test.
+together (float64 lanes) by the watertight ray-triangle test.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
-from ._wide_build_kernels import LEAF_SHIFT, collapse
+from ._wide_build_kernels import C_NODE, C_PACKET, LEAF_SHIFT, MAX_LEAF_TRIS, collapse
 from ._wide_kernels import stack_size
 from .sah import BuildTree
 
@@ -76,8 +77,14 @@ class WideBVH:
                 "triangles": int(self.tri4.nbytes + self.face4.nbytes)}
 
 
-def collapse_tree(tree: BuildTree, tris: np.ndarray) -> WideBVH:
-    """The wide layout of ``tree`` (a build over ``tris`` (m, 3, 3) float32)."""
+def collapse_tree(tree: BuildTree, tris: np.ndarray, *, c_node: float = C_NODE, c_packet: float = C_PACKET,
+                  max_leaf_tris: int = MAX_LEAF_TRIS) -> WideBVH:
+    """The wide layout of ``tree`` (a build over ``tris`` (m, 3, 3) float32).
+
+    ``c_node``, ``c_packet`` and ``max_leaf_tris`` steer the SAH collapse
+    (:mod:`._wide_build_kernels`): the relative costs of a node's box tests and a
+    packet's triangle tests, and the most triangles a leaf made of an inner node holds.
+    """
     used = tree.first >= 0
     leaf = used & (tree.count > 0)
     n_packets = int(np.sum((tree.count[leaf].astype(np.int64) + 3) // 4))
@@ -86,7 +93,8 @@ def collapse_tree(tree: BuildTree, tris: np.ndarray) -> WideBVH:
                              f"addresses at most {2 ** (31 - LEAF_SHIFT) - 1} (use layout='binary')")
     n_inner = int(np.count_nonzero(used & (tree.count == 0)))
     box, child, tri4, face4, depth = collapse(tree.bounds, tree.first, tree.count, tree.ids, tris,
-                                              max(n_inner, 1), n_packets)
+                                              max(n_inner, 1), n_packets, float(c_node), float(c_packet),
+                                              int(max_leaf_tris))
     return WideBVH(_pack_nodes(box, child), tri4, face4, int(depth), tree.bounds[0].copy())
 
 
