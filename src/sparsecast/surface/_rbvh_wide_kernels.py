@@ -2,7 +2,7 @@
 
 Inner nodes as in the exact wide BVH (:mod:`._wide_kernels`): the four child
 boxes of a node are met in one loop over the SoA rows, near and far planes picked
-once per ray from the direction's signs, widened by :data:`._wide_kernels.ROBUST`;
+once per ray from the direction's signs, widened by :data:`ROBUST`;
 the children the ray enters go on the stack sorted by entry distance, nearest on
 top, and an entry farther than the best hit so far is dropped when popped.
 
@@ -27,7 +27,11 @@ from ..kernels.tiles import tile_bounds, tile_count
 from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
 from ._rbvh_wide_build_kernels import WIDTH
 from ._rbvh_kernels import tile_hit
-from ._wide_kernels import ROBUST, _inv, slab_origins
+from ._wide_kernels import _inv, slab_origins
+
+#: far-plane widening of the float64 box test: covers the rounding of (plane - o) / d
+#: (the exact BVH's float32 test widens by its own ROBUST32)
+ROBUST = 1.0 + 2.0 ** -48
 
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
