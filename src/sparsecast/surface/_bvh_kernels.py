@@ -23,7 +23,7 @@ from numba import njit, prange
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
 from ._rbvh_kernels import tile_hit, tile_normal
-from ._wide_kernels import _inv, slab_origins  # one safe inverse for both layouts
+from ._wide_kernels import _inv, slab_origins, vertex_normal  # one safe inverse, one shading normal for both layouts
 
 #: ``node_count`` of a tile leaf
 TILE_LEAF = -1
@@ -120,15 +120,7 @@ def hit_normal(faces, vnormals, tile_rect, atlas_normal, leaf_tri, tile, a, b):
     """Unit shading normal of a hit on leaf triangle ``leaf_tri`` (barycentrics ``a, b`` of
     vertices 1 and 2) or, when ``leaf_tri < 0``, on ``tile`` at texel coordinates ``(a, b)``."""
     if leaf_tri >= 0:
-        w = 1.0 - a - b
-        f0, f1, f2 = faces[leaf_tri, 0], faces[leaf_tri, 1], faces[leaf_tri, 2]
-        nx = w * vnormals[f0, 0] + a * vnormals[f1, 0] + b * vnormals[f2, 0]
-        ny = w * vnormals[f0, 1] + a * vnormals[f1, 1] + b * vnormals[f2, 1]
-        nz = w * vnormals[f0, 2] + a * vnormals[f1, 2] + b * vnormals[f2, 2]
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 0.0:
-            nx, ny, nz = nx / ln, ny / ln, nz / ln
-        return nx, ny, nz
+        return vertex_normal(faces, vnormals, leaf_tri, a, b)
     return tile_normal(atlas_normal, tile_rect[tile, 0], tile_rect[tile, 1], tile_rect[tile, 2], a, b)
 
 

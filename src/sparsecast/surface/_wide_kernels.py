@@ -127,6 +127,21 @@ def _cull(best):
     return _f32(best * ROBUST32, True)
 
 
+@njit(cache=True)
+def vertex_normal(faces, vnormals, face, a, b):
+    """Unit shading normal of face ``face`` at barycentrics ``a, b`` of its vertices 1 and 2
+    (the vertex normals interpolated; zero where they cancel). Shared by every layout."""
+    w = 1.0 - a - b
+    f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
+    nx = w * vnormals[f0, 0] + a * vnormals[f1, 0] + b * vnormals[f2, 0]
+    ny = w * vnormals[f0, 1] + a * vnormals[f1, 1] + b * vnormals[f2, 1]
+    nz = w * vnormals[f0, 2] + a * vnormals[f1, 2] + b * vnormals[f2, 2]
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if ln > 0.0:
+        nx, ny, nz = nx / ln, ny / ln, nz / ln
+    return nx, ny, nz
+
+
 @njit(cache=True, inline="always")
 def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, dy, dz, t_min, t_max,
                      st_node, st_t, lane_b, lane_t):
@@ -246,14 +261,7 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
     ha = (a_x * c_y - a_y * c_x) / best_det
     hb = (b_x * a_y - b_y * a_x) / best_det
     face = face4[p, lane]
-    w = 1.0 - ha - hb
-    f0, f1, f2 = faces[face, 0], faces[face, 1], faces[face, 2]
-    nx = w * vnormals[f0, 0] + ha * vnormals[f1, 0] + hb * vnormals[f2, 0]
-    ny = w * vnormals[f0, 1] + ha * vnormals[f1, 1] + hb * vnormals[f2, 1]
-    nz = w * vnormals[f0, 2] + ha * vnormals[f1, 2] + hb * vnormals[f2, 2]
-    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if ln > 0.0:
-        nx, ny, nz = nx / ln, ny / ln, nz / ln
+    nx, ny, nz = vertex_normal(faces, vnormals, face, ha, hb)
     return best, nx, ny, nz, face, -1, ha, hb
 
 
