@@ -174,12 +174,14 @@ def test_embree_build_includes_the_first_cast(monkeypatch):
     def record(**kw):
         recs.append({**kw, "after": list(events)})
 
-    surface._embree(mesh, cam, 8, 8, diffuse, 3, 1, record, "sphere", (1.0, 1.0))
+    frames = surface._embree_frames(mesh, cam, 8, 8, diffuse, record, "sphere")
     build = next(r for r in recs if r["phase"] == "build")
     assert build["after"] == ["add", "cast"]  # recorded after the first cast, not before
     assert build["ms"] == pytest.approx(build["copy_ms"] + build["first_cast_ms"])
-    renders = [r for r in recs if r["phase"] in ("render", "render_diffuse")]
-    assert len(renders) == 2 and all(len(r["ms_runs"]) == 3 for r in renders)
+    # Its primary and diffuse frames cast the scene; the section times them in its rounds.
+    runs = surface.interleaved(dict(zip(("primary", "diffuse"), frames)), 3, 1)
+    assert events == ["add"] + ["cast"] * (1 + 2 * 4)
+    assert all(len(r.ms) == 3 for r in runs.values())
 
 
 def test_surface_section_reports_both_layouts_per_cpu_second():
@@ -210,3 +212,29 @@ def test_surface_section_reports_both_layouts_per_cpu_second():
         assert "open3d" in skipped["reason"] and "pip install" in skipped["reason"]
     else:
         assert by[("embree", "render")]["mrays_cpu_s"] > 0
+
+
+def test_surface_section_interleaves_every_method_and_reports_spread(monkeypatch):
+    """Each round casts every method once, primary rays first, then diffuse rays."""
+    from sparsecast.bench import surface
+    from sparsecast.surface.mesh import icosphere
+
+    calls: list[str] = []
+    real = surface.interleaved
+
+    def spy(frames, repeat, warmup):
+        wrapped = {m: (lambda m=m, f=f: (calls.append(m), f())[1]) for m, f in frames.items()}
+        return real(wrapped, repeat, warmup)
+
+    monkeypatch.setattr(surface, "interleaved", spy)
+    monkeypatch.setitem(sys.modules, "open3d", None)  # no Embree: ours only
+    recs = []
+    surface._bench_mesh("sphere", icosphere(2), 16, 8, 3, 1, lambda **kw: recs.append(kw))
+    methods = [r["method"] for r in recs if r["phase"] == "render"]
+    assert methods[0] == "bvh" and len(methods) == len(set(methods)) >= 8
+    # 1 warm-up + 3 timed rounds, each calling every method in the same order, twice.
+    assert calls == (methods * 4) * 2
+    for r in recs:
+        if r["phase"] in ("render", "render_diffuse"):
+            assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"] and r["ms_mad"] >= 0
+            assert r["cpu_ms"] > 0 and r["mrays_cpu_s"] > 0

@@ -29,6 +29,10 @@ the vertical: 7 M triangles of distinct surface)):
   ``first_cast_ms``), since Open3D builds Embree's BVH lazily in the first cast;
   its renders record the same wall and CPU figures (``cores_busy`` = CPU / wall
   says how many threads it kept busy).
+
+Primary and diffuse casts are timed in interleaved rounds (:func:`.timing.interleaved`:
+a warm-up round, then every method and Embree in turn per round), each render record
+with the median, its runs, min / max / MAD and the median CPU ms.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ from ..surface.render import cast_camera, shade
 from ..surface.secondary import cosine_directions, facing
 from .images import psnr
 from .shared_data import find_shared_data
-from .timing import median_ms, timed_call
+from .timing import Frame, Runs, interleaved, median_ms
 
 __all__ = ["run", "MESHES", "DEFAULT_DATASETS", "QUALITIES"]
 
@@ -114,45 +118,45 @@ def _cast(index: SurfaceIndex, o: np.ndarray, d: np.ndarray) -> Callable[[], obj
     return RayCast(index, o, d).run
 
 
-def _timed(fn: Callable[[], object], repeat: int, warmup: int) -> tuple[float, list[float], float, object]:
-    """Median wall ms, the wall runs, the median CPU ms (all threads) of ``fn``, its last result."""
-    for _ in range(warmup):
-        fn()
-    runs = [timed_call(fn) for _ in range(max(1, repeat))]
-    return (float(np.median([r[1] for r in runs])), [r[1] for r in runs], float(np.median([r[2] for r in runs])),
-            runs[-1][0])
-
-
 def _rates(rays: int, ms: float, cpu_ms: float) -> dict:
     """Rays per second (wall) and per CPU-second, and the threads our kernels ran on."""
     return {"mrays_s": rays / ms / 1e3, "cpu_ms": cpu_ms, "mrays_cpu_s": rays / max(cpu_ms, 1e-9) / 1e3,
             "threads": numba.get_num_threads(), "cores_busy": round(cpu_ms / ms, 2) if ms > 0 else None}
 
 
-def _primary(index: SurfaceIndex, cam: Camera, width: int, height: int, repeat: int, warmup: int):
-    """Median kernel ms of the primary rays (output allocation excluded), the runs, median CPU ms, the hits."""
-    cast_camera(index, cam, 8, 8)  # compile / load outside the timing
-    kernel_ms: list[float] = []
+def _timing(runs: Runs, rays: int) -> dict:
+    """Record fields of one method's interleaved runs: median ms, spread, CPU ms and the rates."""
+    f = runs.fields()
+    return {**f, **_rates(rays, f["ms"], f["cpu_ms"]), "cores_busy": f["cores_busy"]}
 
-    def once():
+
+def _primary_frame(index: SurfaceIndex, cam: Camera, width: int, height: int) -> Frame:
+    """One primary-ray frame; its time is the kernel's (output allocation excluded)."""
+    cast_camera(index, cam, 8, 8)  # compile / load outside every round
+
+    def frame():
         h = cast_camera(index, cam, width, height)
-        kernel_ms.append(h.ms)
-        return h
+        return h, h.ms
 
-    _, _, cpu_ms, hits = _timed(once, repeat, warmup)
-    runs = kernel_ms[warmup:]
-    return float(np.median(runs)), runs, cpu_ms, hits
+    return frame
 
 
-def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, repeat: int, warmup: int,
-            record: Callable[..., None], dataset: str, ref_ms: tuple[float, float]) -> None:
+def _cast_frame(cast: Callable[[], object]) -> Frame:
+    cast()  # compile / load outside every round
+    return lambda: (cast(), None)
+
+
+def _embree_frames(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse,
+                   record: Callable[..., None], dataset: str) -> tuple[Frame, Frame] | None:
+    """Embree's scene through Open3D, built and recorded (the first cast included), and its
+    primary and diffuse frames; None (a ``skipped`` record) when Open3D does not import."""
     try:
         import open3d as o3d  # an optional peer, not a dependency
     except Exception as exc:  # ImportError, or a missing system library behind it
         record(dataset=dataset, method="embree", phase="skipped", ms=None,
                reason=f"open3d (Embree's Python binding here) does not import: {type(exc).__name__}: {exc}; "
                       "pip install open3d to time Embree beside the BVH")
-        return
+        return None
     o, d = cam.rays(width, height)
     prim = o3d.core.Tensor(np.concatenate([o, d], -1).reshape(-1, 6).astype(np.float32))
     sec = o3d.core.Tensor(np.concatenate(diffuse, -1).astype(np.float32))
@@ -167,13 +171,7 @@ def _embree(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse, r
     t2 = time.perf_counter()
     record(dataset=dataset, method="embree", phase="build", ms=(t2 - t0) * 1e3, copy_ms=(t1 - t0) * 1e3,
            first_cast_ms=(t2 - t1) * 1e3, triangles=mesh.n_triangles)
-    for phase, rays, n, ref in (("render", prim, width * height, ref_ms[0]),
-                                ("render_diffuse", sec, len(diffuse[0]), ref_ms[1])):
-        ms, runs, cpu_ms, _ = _timed(lambda: scene.cast_rays(rays), repeat, warmup)
-        rates = _rates(n, ms, cpu_ms)
-        rates["threads"] = None  # Open3D's own choice: cores_busy tells
-        record(dataset=dataset, method="embree", phase=phase, ms=ms, ms_runs=runs, rays=n,
-               speedup=ref / ms, width=width, height=height, **rates)
+    return (lambda: (scene.cast_rays(prim), None)), (lambda: (scene.cast_rays(sec), None))
 
 
 def run(datasets: list[str] | None, *, width: int, height: int, repeat: int, warmup: int,
@@ -243,43 +241,45 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
     indices["rbvh-Q2-mip3"] = mip
     _mem_ratio(mip, bvh_bytes, record, name, "rbvh-Q2-mip3")
 
-    # Primary rays: the exact image first (reference for PSNR, depth error, diffuse rays).
-    ref_ms, ref_runs, ref_cpu, ref = _primary(bvh, cam, width, height, repeat, warmup)
+    # The exact image first: the reference for PSNR and depth errors, and the origin of the
+    # diffuse rays every method then casts.
+    ref = cast_camera(bvh, cam, width, height)
     dist = float(np.linalg.norm(cam.eye - mesh.center))
     depth_range = (max(dist - diag / 2, 0.0), dist + diag / 2)
     ref_img = shade(ref, cam, "shaded", depth_range)
     diffuse = _diffuse_rays(ref, cam, width, height, eps=1e-4 * diag)
     n_diffuse = len(diffuse[0])
-    cast_ref = _cast(bvh, *diffuse)
-    cast_ref()  # compile outside the timing
-    ref_d_ms, ref_d_runs, ref_d_cpu, _ = _timed(cast_ref, repeat, warmup)
     rays = width * height
-    record(dataset=name, method="bvh", phase="render", ms=ref_ms, ms_runs=ref_runs, rays=rays,
-           hits=int(np.isfinite(ref.t).sum()), speedup=1.0, width=width, height=height, view=list(VIEW),
-           **_rates(rays, ref_ms, ref_cpu))
-    record(dataset=name, method="bvh", phase="render_diffuse", ms=ref_d_ms, ms_runs=ref_d_runs, rays=n_diffuse,
-           speedup=1.0, width=width, height=height, view=list(VIEW), **_rates(n_diffuse, ref_d_ms, ref_d_cpu))
+    # Every method (and Embree) takes its turn in each round, primary rays and diffuse rays
+    # apart (timing.interleaved), so that all share the machine's drifts.
+    primary = {m: _primary_frame(idx, cam, width, height) for m, idx in indices.items()}
+    secondary = {m: _cast_frame(_cast(idx, *diffuse)) for m, idx in indices.items()}
+    embree = _embree_frames(mesh, cam, width, height, diffuse, record, name)
+    if embree is not None:
+        primary["embree"], secondary["embree"] = embree
+    p_runs = interleaved(primary, repeat, warmup)
+    d_runs = interleaved(secondary, repeat, warmup)
+    ref_ms, ref_d_ms = p_runs["bvh"].fields()["ms"], d_runs["bvh"].fields()["ms"]
     both_ref = np.isfinite(ref.t)
-    for method, idx in indices.items():
-        if method == "bvh":
-            continue
-        ms, runs, cpu_ms, hits = _primary(idx, cam, width, height, repeat, warmup)
-        img = shade(hits, cam, "shaded", depth_range)
-        both = both_ref & np.isfinite(hits.t)
-        err = np.abs(hits.t[both] - ref.t[both]) / diag * 100.0
-        record(dataset=name, method=method, phase="render", ms=ms, ms_runs=runs, rays=rays,
-               hits=int(np.isfinite(hits.t).sum()), speedup=ref_ms / ms, **_rates(rays, ms, cpu_ms),
-               psnr=psnr(img, ref_img), depth_err_mean_pct=float(err.mean()) if err.size else None,
-               depth_err_max_pct=float(err.max()) if err.size else None,
-               hit_mismatch_pct=float(np.mean(np.isfinite(hits.t) != both_ref) * 100.0),
-               width=width, height=height, view=list(VIEW))
-        cast_d = _cast(idx, *diffuse)
-        cast_d()
-        d_ms, d_runs, d_cpu, _ = _timed(cast_d, repeat, warmup)
-        record(dataset=name, method=method, phase="render_diffuse", ms=d_ms, ms_runs=d_runs, rays=n_diffuse,
-               speedup=ref_d_ms / d_ms, width=width, height=height, view=list(VIEW),
-               **_rates(n_diffuse, d_ms, d_cpu))
-    _embree(mesh, cam, width, height, diffuse, repeat, warmup, record, name, (ref_ms, ref_d_ms))
+    for method in primary:
+        p, d = _timing(p_runs[method], rays), _timing(d_runs[method], n_diffuse)
+        extra: dict = {}
+        if method == "embree":
+            p["threads"] = d["threads"] = None  # Open3D's own choice: cores_busy tells
+        else:
+            hits = p_runs[method].result
+            extra["hits"] = int(np.isfinite(hits.t).sum())
+            if method != "bvh":
+                both = both_ref & np.isfinite(hits.t)
+                err = np.abs(hits.t[both] - ref.t[both]) / diag * 100.0
+                extra.update(psnr=psnr(shade(hits, cam, "shaded", depth_range), ref_img),
+                             depth_err_mean_pct=float(err.mean()) if err.size else None,
+                             depth_err_max_pct=float(err.max()) if err.size else None,
+                             hit_mismatch_pct=float(np.mean(np.isfinite(hits.t) != both_ref) * 100.0))
+        record(dataset=name, method=method, phase="render", rays=rays, speedup=ref_ms / p["ms"], width=width,
+               height=height, view=list(VIEW), **p, **extra)
+        record(dataset=name, method=method, phase="render_diffuse", rays=n_diffuse, speedup=ref_d_ms / d["ms"],
+               width=width, height=height, view=list(VIEW), **d)
 
 
 def _mem_ratio(idx: SurfaceIndex, bvh_bytes: int, record, name: str, method: str) -> None:
