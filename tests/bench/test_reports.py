@@ -31,7 +31,7 @@ def _run(scale: float = 1.0) -> list[dict]:
         recs.append({"dataset": "d", "tf": "default", "method": m, "phase": "rebuild", "ms": build, "bytes": 4096,
                      "index_stats": {"phases": {"classify": build / 4, "split": 3 * build / 4}}})
     for view in ("v1", "v2"):
-        recs += [_render("d", "naive", 100.0 * scale, view=view, samples=1000),
+        recs += [_render("d", "naive", 100.0 * scale, view=view, samples=1000, samples_cell_bound=150),
                  _render("d", "grid-pc", 10.0 * scale, view=view, samples=300),
                  _render("d", "lbvh", 20.0, view=view, samples=200),
                  _render("d", "bih:mode=single-sample", 5.0, view=view, samples=50, exact=False, psnr_vs_naive=33.0)]
@@ -58,9 +58,11 @@ def test_markdown_report_names_best_index_and_peers(tmp_path):
     summary = text.split("## Summary")[1].split("##")[0]
     row = next(line for line in summary.splitlines() if line.startswith("| d (8×8×8)"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    # dataset, TF, size, occupancy, best, frame ms, naive ms, x naive, work eff, rebuild, bytes, x vtk
+    # dataset, TF, size, occupancy, best, frame ms, naive ms, x naive, work eff, cell bound, rebuild,
+    # bytes, x vtk; the cell bound is the naive frames' samples in occupied cells / oracle
     assert cells[4] == "`grid-pc`" and cells[5] == "10.0" and cells[6] == "100.0"
-    assert cells[7] == "10.0×" and cells[8] == "3.00" and cells[9] == "2.00" and cells[11] == "4.0×"
+    assert cells[7] == "10.0×" and cells[8] == "3.00" and cells[9] == "1.50" and cells[10] == "2.00"
+    assert cells[12] == "4.0×"
     assert "25.0 %" in row and "test cpu" in text
     assert "## Peers on the same cases" in text and "41.0 dB" in text and "`d_vtk.png`" in text
     assert "## Approximate indices" in text and "33.0 dB" in text

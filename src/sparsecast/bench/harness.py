@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .bounds import cell_bound
 from ..camera import Camera
 from ..index import build_index, parse_index_spec
 from ..render import render
@@ -355,6 +356,11 @@ class _TfCases:
                 img = runs.result
                 if not index.exact:
                     extra["psnr_vs_naive"] = psnr(img.rgba, self.reference(w, h, view))
+                if method == "naive":
+                    # Untimed: the samples a perfect cell-exact skipper takes (bench.bounds).
+                    bound = cell_bound(vol, tf, cam, w, h, img.stats["dt"], img.stats["ert"])
+                    if bound is not None:
+                        extra["samples_cell_bound"] = bound["samples_cell_bound"]
                 if method == "naive" and i == 0 and cfg.images_dir is not None:
                     path = Path(cfg.images_dir) / image_name(ds, tf_name, f"{w}x{h}", name, "sparsecast")
                     extra["image"] = str(save_png(img.rgba, path))

@@ -96,7 +96,7 @@ def format_summary(records: list[dict[str, Any]]):
     rows, peers = best_rows(records)
     table = Table(title="sparsecast bench: best index per dataset (details in the report / JSON)")
     for col in ["dataset", "tf", "size", "best", "frame ms", "spread %", "cores busy", "cycles / sample",
-                "x naive", "samples / oracle", "rebuild ms", *[f"x {p}" for p in peers]]:
+                "x naive", "samples / oracle", "cell bound", "rebuild ms", *[f"x {p}" for p in peers]]:
         table.add_column(col, justify="left" if col in ("dataset", "tf", "size", "best") else "right")
     for b in rows:
         vs = []
@@ -109,7 +109,7 @@ def format_summary(records: list[dict[str, Any]]):
                       _fmt(b.best.spread_pct, ".0f"), _fmt(b.best.cores_busy, ".2f"),
                       _fmt(b.best.cycles_per_sample, ".0f"),
                       _fmt(b.best.speedup_vs_naive, ".1f"), _fmt(b.best.work_efficiency, ".2f"),
-                      _fmt(b.rebuild_ms, ".2f"), *vs)
+                      _fmt(b.cell_bound, ".2f"), _fmt(b.rebuild_ms, ".2f"), *vs)
     table.caption = _timing_caption(records) + (
         "; spread % = (max - min) / median of the timed runs, median over views" if rows else "")
     return table

@@ -42,6 +42,10 @@ class RenderRow:
         Median over views of (max - min) / median of the timed runs, in %.
     cores_busy, cycles_per_sample : float or None
         Medians over views (CPU / wall; CPU time at the nominal clock per sample).
+    cell_bound : float or None
+        Samples in occupied cells / oracle samples, summed over views: the least
+        ``work_efficiency`` any index that skips by cells can reach
+        (:mod:`.bounds`); recorded with the naive marcher's frames.
     """
 
     dataset: str
@@ -63,6 +67,7 @@ class RenderRow:
     spread_pct: float | None = None
     cores_busy: float | None = None
     cycles_per_sample: float | None = None
+    cell_bound: float | None = None
 
     @property
     def size(self) -> str:
@@ -85,6 +90,9 @@ def render_rows(records: list[Record]) -> list[RenderRow]:
     for (ds, tf, method, w, h), recs in groups.items():
         samples = sum(r.get("samples") or 0 for r in recs)
         oracle = sum(r.get("samples_nonempty") or 0 for r in recs)
+        bounded = [r for r in recs if r.get("samples_cell_bound") is not None]
+        in_cells = sum(r["samples_cell_bound"] for r in bounded)
+        bounded_oracle = sum(r.get("samples_nonempty") or 0 for r in bounded)
         rows.append(RenderRow(
             dataset=ds, tf=tf, method=method, width=w, height=h,
             ms=statistics.median(r["ms"] for r in recs), views=len(recs),
@@ -101,6 +109,7 @@ def render_rows(records: list[Record]) -> list[RenderRow]:
                                 if r.get("ms_max") is not None and r["ms"]]),
             cores_busy=_median([r.get("cores_busy") for r in recs]),
             cycles_per_sample=_median([r.get("cycles_per_sample") for r in recs]),
+            cell_bound=in_cells / bounded_oracle if bounded and bounded_oracle else None,
         ))
     return rows
 
@@ -135,6 +144,9 @@ class BestRow:
     peer_samples : dict
         Peer name -> median over its views of its samples / our naive marcher's, for
         peers that report samples (yt steps per cell, not per unit length).
+    cell_bound : float or None
+        The naive row's :attr:`RenderRow.cell_bound`: the least samples / oracle of any
+        cell-exact index on this case.
     """
 
     dataset: str
@@ -148,6 +160,7 @@ class BestRow:
     rebuild_ms: float | None
     vs_peers: dict[str, float | None]
     peer_samples: dict[str, float | None] = field(default_factory=dict)
+    cell_bound: float | None = None
 
 
 def peer_ratio(records: list[Record], dataset: str, tf: str, peer: str, width: int, height: int,
@@ -169,6 +182,7 @@ def best_rows(records: list[Record]) -> tuple[list[BestRow], list[str]]:
                  if r.get("phase") == "tf_classify" and not r.get("section")}
     dims = {r["dataset"]: r.get("dims") for r in records if r.get("phase") == "load" and not r.get("section")}
     naive = {(r.dataset, r.tf, r.width, r.height): r.ms for r in rows if r.method == "naive"}
+    bound = {(r.dataset, r.tf, r.width, r.height): r.cell_bound for r in rows if r.method == "naive"}
     cases = sorted({(r.dataset, r.tf, r.width, r.height) for r in rows if not r.peer},
                    key=lambda c: (c[0], c[1] != "default", c[2] or 0))
     out = []
@@ -182,5 +196,6 @@ def best_rows(records: list[Record]) -> tuple[list[BestRow], list[str]]:
             rebuild_ms=builds.get((ds, tf, best.method, "rebuild"), {}).get("ms"),
             vs_peers={p: peer_ratio(records, ds, tf, p, w, h) for p in peers},
             peer_samples={p: peer_ratio(records, ds, tf, p, w, h, "samples_vs_naive") for p in peers},
+            cell_bound=bound.get((ds, tf, w, h)),
         ))
     return out, peers
