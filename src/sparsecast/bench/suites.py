@@ -172,7 +172,7 @@ SUITES: dict[str, Suite] = {
             "512^2 and 1024^2, one view on each orbit around x, y, z (3 timed rounds and a warm-up "
             "per view, interleaved), sparse + dense TF, peers, BIH and RBVH sections",
             short="the papers' evaluation",
-            duration="13.8 min",
+            duration="56 min",
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
             # Budget (2 cores, ~30 min): 4 frames (warm-up + 3 rounds) on 3 views cost what
