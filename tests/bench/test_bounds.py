@@ -65,3 +65,13 @@ def test_label_tfs_have_no_cell_bound(scene):
     vol, _ = scene
     labels = TransferFunction.labels({1: (1, 0, 0, 1)})
     assert cell_bound(vol, labels, sc.Camera.orbit(vol), 4, 4, 0.5) is None
+
+
+def test_a_kept_occupancy_gives_the_same_counts(scene):
+    from sparsecast.bench.bounds import volume_occupancy
+
+    vol, tf = scene
+    cam = sc.Camera.orbit(vol, 30.0, 20.0)
+    dt = 0.375
+    kept = volume_occupancy(vol, tf, dt)
+    assert cell_bound(vol, tf, cam, 16, 12, dt, occupancy=kept) == cell_bound(vol, tf, cam, 16, 12, dt)

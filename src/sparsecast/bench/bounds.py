@@ -25,7 +25,7 @@ from ..kernels.ray import clip_lattice
 from ..kernels.sample import trilinear
 from ..kernels.shade import tf_alpha
 
-__all__ = ["cell_occupancy", "cell_bound"]
+__all__ = ["cell_occupancy", "volume_occupancy", "cell_bound"]
 
 
 def cell_occupancy(data: np.ndarray, table: np.ndarray, v_lo: float, scale: float) -> np.ndarray:
@@ -102,7 +102,21 @@ def _count(flat, nx, ny, nz, occ, table, v_lo, scale, cam, width, height, origin
         out[py, 2] = in_cells
 
 
-def cell_bound(volume, tf, camera, width: int, height: int, dt: float, ert: float = 0.99) -> dict[str, int] | None:
+def _table(volume, tf, dt: float) -> np.ndarray:
+    """The frame's step-corrected TF table, as :func:`sparsecast.render.render` makes it."""
+    unit = tf.unit_distance if tf.unit_distance is not None else float(np.min(volume.spacing))
+    return np.ascontiguousarray(tf.opacity_table(dt, unit), dtype=np.float32)
+
+
+def volume_occupancy(volume, tf, dt: float) -> np.ndarray:
+    """:func:`cell_occupancy` of ``volume`` under ``tf``'s table for step ``dt`` (one per
+    volume, TF and step: every view of a case shares it)."""
+    return np.ascontiguousarray(cell_occupancy(volume.data, _table(volume, tf, dt), float(tf.value_range[0]),
+                                               float(tf.scale)))
+
+
+def cell_bound(volume, tf, camera, width: int, height: int, dt: float, ert: float = 0.99, *,
+               occupancy: np.ndarray | None = None) -> dict[str, int] | None:
     """Samples of the naive marcher, of non-zero opacity, and in occupied cells, for one frame.
 
     Parameters
@@ -115,6 +129,9 @@ def cell_bound(volume, tf, camera, width: int, height: int, dt: float, ert: floa
     width, height : int
     dt, ert : float
         The frame's lattice step and early-termination threshold.
+    occupancy : ndarray, optional
+        :func:`volume_occupancy` of this volume, TF and ``dt``, when the caller keeps it
+        across views (computed here otherwise).
 
     Returns
     -------
@@ -125,11 +142,9 @@ def cell_bound(volume, tf, camera, width: int, height: int, dt: float, ert: floa
     if getattr(tf, "sampling", "trilinear") != "trilinear":
         return None
     data = np.ascontiguousarray(volume.data)
-    min_spacing = float(np.min(volume.spacing))
-    unit = tf.unit_distance if tf.unit_distance is not None else min_spacing
-    table = np.ascontiguousarray(tf.opacity_table(dt, unit), dtype=np.float32)
+    table = _table(volume, tf, dt)
     v_lo, scale = float(tf.value_range[0]), float(tf.scale)
-    occ = np.ascontiguousarray(cell_occupancy(data, table, v_lo, scale))
+    occ = volume_occupancy(volume, tf, dt) if occupancy is None else occupancy
     nz, ny, nx = data.shape
     out = np.zeros((height, 3), np.int64)
     _count(data.reshape(-1), nx, ny, nz, occ, table, v_lo, scale,
