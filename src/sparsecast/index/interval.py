@@ -90,6 +90,7 @@ from __future__ import annotations
 import numpy as np
 from numba.extending import overload
 
+from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.iso import Iso, IsoDvr, iso_interval
 from ..kernels.march import Dvr, march_interval
 
@@ -191,7 +192,7 @@ def _no_scratch(record):
     return impl
 
 
-@overload(integrate, jit_options={"error_model": "numpy"})
+@overload(integrate, jit_options={"error_model": "numpy", **NO_REFCOUNT})
 def _integrate_lattice(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing,
                        dt, ert, shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
     if record_class(record) is None or not _lattice(record):

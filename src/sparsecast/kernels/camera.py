@@ -6,8 +6,10 @@ import math
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
 
-@njit(cache=True)
+
+@njit(cache=True, **NO_REFCOUNT)
 def primary_ray(params, px, py, width, height):
     """World-space ray through the centre of pixel ``(px, py)`` (row 0 at the top).
 
@@ -27,7 +29,7 @@ def primary_ray(params, px, py, width, height):
     return params[0] + sx, params[1] + sy, params[2] + sz, params[3], params[4], params[5]
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def index_space_ray(params, px, py, width, height, origin, inv_spacing):
     """Primary ray of pixel ``(px, py)`` mapped into the volume's index space.
 
@@ -42,7 +44,7 @@ def index_space_ray(params, px, py, width, height, origin, inv_spacing):
     return ox, oy, oz, wdx * inv_spacing[0], wdy * inv_spacing[1], wdz * inv_spacing[2], wdx, wdy, wdz
 
 
-@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def tile_corner_rays(params, x0, x1, y0, y1, width, height, origin, inv_spacing):
     """Index-space rays ``(ox, oy, oz, dx, dy, dz)`` of a pixel rectangle's four corners.
 

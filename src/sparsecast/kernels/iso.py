@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from .borrow import NO_REFCOUNT
 from .ray import lattice_range
 from .sampler import sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
@@ -83,7 +84,7 @@ def _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, t):
     return sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _refine(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
     """``t`` in ``[ta, tb]`` where the field crosses ``v`` (``ga``, ``gb``: field minus ``v`` at the ends)."""
     above = ga >= 0.0
@@ -101,7 +102,7 @@ def _refine(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v
     return ta + (tb - ta) * (ga / (ga - gb))
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, inv_spacing, shading,
              values, colors, j, ta, tb, fa, fb, r, g, b, a):
     """Composite surface ``j`` crossed in ``[ta, tb]``; returns the new accumulation and its ``t``."""
@@ -122,7 +123,7 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
 
 
 # Not inlined, as :func:`.march.march_interval`: one compiled copy serves every index.
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def iso_interval(
     mode, sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wdir, inv_spacing,
     dt, t0, t1, k_next, k_min, k_max, acc, ert, shading,

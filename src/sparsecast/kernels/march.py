@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
 from .ray import lattice_range
 from .sampler import sample_alpha, sample_color, sample_normal
 from .shade import SHADING_ENABLED, blinn_phong
@@ -24,7 +25,7 @@ class Dvr(NamedTuple):
     tag: int = 0
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing,
                   shading):
     """Blinn-Phong colour of one sample from its central-difference normal
@@ -121,7 +122,7 @@ def march_segment(
 # signature names no index record, so one compiled (and cached) copy per sampler and
 # dtype serves every index, where an inlined copy was compiled again in each record's
 # ``integrate``.
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def march_interval(
     sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
@@ -153,7 +154,7 @@ def march_interval(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def cap_sample(
     sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,

@@ -11,8 +11,10 @@ import math
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def slab_ordered(o, inv, flat, near, far, t0, t1):
     """Restrict ``[t0, t1]`` to one slab whose planes are given near plane first.
 
@@ -33,7 +35,7 @@ def slab_ordered(o, inv, flat, near, far, t0, t1):
     return max(t0, (near - o) * inv), min(t1, (far - o) * inv)
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def slab(o, inv, flat, lo, hi, t0, t1):
     """Restrict ``[t0, t1]`` to the slab ``lo <= o + t d <= hi`` (``inv = 1 / d``)."""
     if inv < 0.0 and not flat:
@@ -49,7 +51,7 @@ def inverse(d):
     return 1.0 / d, False
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
     """Parametric interval ``(t_near, t_far)`` of a ray inside an axis-aligned box.
 
@@ -65,7 +67,7 @@ def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
     return tn, tf
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def lattice_range(t_near, t_far, dt):
     """Indices ``k0..k1`` (inclusive) of lattice samples ``k * dt`` in ``[t_near, t_far]``.
 
@@ -99,7 +101,7 @@ def _k_from_far(t, dt, open_face):
     return int(math.floor(q))
 
 
-@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt):
     """Lattice samples of a ray inside a box whose faces may be half-open.
 
@@ -151,7 +153,7 @@ def clip_lattice(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, ox0, oy0, oz0, 
     return k_lo, k_hi, t_lo, t_hi
 
 
-@njit(cache=True, error_model="numpy")  # once per ray or tile, a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per ray or tile, a plain call: see index.interval, "Inlining"
 def clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi, k_lo, k_hi):
     """Restrict a ray's interval and lattice range to the half-spaces of ``planes``.
 
@@ -213,7 +215,7 @@ def _near_face(o, d, lo, hi, cut_lo, cut_hi, t_lo):
     return cut_lo and (lo - o) * inv == t_lo
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, planes, entered, t_lo):
     """The cut face a ray enters its clipped interval through, for capping.
 
@@ -268,7 +270,7 @@ def entry_face(ox, oy, oz, dx, dy, dz, x0, y0, z0, x1, y1, z1, cut_lo, cut_hi, p
     return found, gx, gy, gz
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _open_face(o, inv, flat, lo, hi, open_lo, open_hi, dt, t_lo, t_hi, k_lo, k_hi):
     """Tighten ``[k_lo, k_hi]`` by one axis's open faces (see :func:`clip_lattice`)."""
     if flat:

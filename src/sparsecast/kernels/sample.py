@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
+
 
 @njit(cache=True, inline="always")
 def _axis(x, n):
@@ -78,7 +80,7 @@ def lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz):
     return c0 + fz * (c1 - c0)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def gradient(flat, nx, ny, nz, x, y, z):
     """Index-space gradient by central differences of trilinear samples (h = 1 voxel).
 

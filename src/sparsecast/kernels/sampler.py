@@ -38,6 +38,7 @@ from typing import NamedTuple
 from numba import njit
 from numba.extending import overload
 
+from .borrow import NO_REFCOUNT
 from .bricked import bricked_corners, bricked_gradient, bricked_nearest, bricked_trilinear
 from .layout import layout_of
 from .sample import clamp_point, corners, gradient, trilinear
@@ -249,7 +250,7 @@ def _smooth_rgba(flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     return label_mix(table, v_lo, scale, v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def _smooth_alpha(flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     """The blended label opacity at ``(x, y, z)`` (:func:`_smooth_rgba`'s ``a``).
 
@@ -258,7 +259,7 @@ def _smooth_alpha(flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     return _smooth_rgba(flat, nx, ny, nz, table, v_lo, scale, x, y, z)[0]
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _smooth_alpha_gradient(flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     """Central differences (h = 1 voxel, clamped to the box) of the blended label opacity.
 

@@ -6,6 +6,9 @@ import math
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
+
+
 # Layout of the ``shading`` parameter array passed to every marcher.
 SHADING_ENABLED, SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS = range(5)
 SHADING_SIZE = 5
@@ -45,7 +48,7 @@ def tf_color(table, i, f):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def blinn_phong(r, g, b, nx, ny, nz, dx, dy, dz, shading):
     """Shade straight colour ``(r, g, b)`` with a headlight (light at the eye).
 
@@ -66,7 +69,7 @@ def blinn_phong(r, g, b, nx, ny, nz, dx, dy, dz, shading):
     return min(r * diff + spec, 1.0), min(g * diff + spec, 1.0), min(b * diff + spec, 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def write_pixel(out, py, px, r, g, b, a, background):
     """Store premultiplied ``(r, g, b, a)`` composited over ``background`` (straight RGBA)."""
     rest = (1.0 - a) * background[3]

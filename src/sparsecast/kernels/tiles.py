@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from numba import njit
 
+from .borrow import NO_REFCOUNT
+
+
 #: Edge of the square pixel tiles the renderers parallelise over. Small tiles
 #: balance load on sparse volumes (some tiles are all background), and nearby rays
 #: touch the same cache lines.
 TILE = 8
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def tile_bounds(tile, width, height):
     """Pixel bounds ``(x0, x1, y0, y1)`` (half-open) of tile number ``tile``."""
     ntx = (width + TILE - 1) // TILE
@@ -21,6 +24,6 @@ def tile_bounds(tile, width, height):
     return x0, min(x0 + TILE, width), y0, min(y0 + TILE, height)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def tile_count(width, height):
     return ((width + TILE - 1) // TILE) * ((height + TILE - 1) // TILE)

@@ -5,9 +5,11 @@ An index enters only through its record and the functions of
 :mod:`sparsecast.index.interval`, dispatched on the record's type, so one
 source serves every index and ``cache=True`` keeps the compiled kernels across
 processes (one specialisation per record type and voxel dtype). The iterator's
-``start_ray`` / ``next_interval`` are inlined into the loop; the loop reads
-borrowed views of every array (:mod:`sparsecast.kernels.borrow`), which keeps
-reference counting out of it: that alone made the deep k-d tree 1.7x faster.
+``start_ray`` / ``next_interval`` are inlined into the loop; the loop and every
+plain kernel it calls compile without reference counting
+(:data:`sparsecast.kernels.borrow.NO_REFCOUNT`): counting the arrays it reads had
+made the deep k-d tree 1.7x slower, and the calls into the runtime that borrowed
+views still paid took 6 % of its isosurface frames.
 
 Exactness. Every sample is taken at a global lattice index ``k`` through
 :func:`sparsecast.kernels.march.march_segment`, whatever the index, and in
@@ -34,7 +36,7 @@ import math
 from numba import njit
 
 from ..index.interval import coalesces, culls_tiles, integrate, make_scratch, next_interval, start_ray, start_tile
-from ..kernels.borrow import borrowed, keep_alive
+from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.camera import index_space_ray, tile_corner_rays
 from ..kernels.march import cap_sample
 from ..kernels.ray import clip_lattice, clip_planes, entry_face
@@ -53,8 +55,8 @@ def _initial(init, has_init, py, px):
     return 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
-def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty):
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
     """Render the pixels of one 8x8 tile of the output rectangle.
 
     Parameters
@@ -63,6 +65,8 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
         Tile number in the output rectangle (row-major, see :mod:`.kernels.tiles`).
     record : NamedTuple
         The index's traversal record (:mod:`sparsecast.index.interval`).
+    scratch : ndarray
+        The record's scratch (``make_scratch(record)``), reused from tile to tile.
     data : (nz, ny, nx) ndarray or BrickedVoxels
         Voxels: a C-contiguous array, or a bricked volume's page table and pool
         (:mod:`sparsecast.kernels.bricked`); each compiles its own loop.
@@ -79,18 +83,9 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
     h, w = out_samples.shape
     has_init = init.shape[0] > 0
     merge = coalesces(record)
-    owned_scratch = make_scratch(record)
-    # The loops read borrowed views (no reference counting, see kernels.borrow):
-    # the arguments live until the caller returns, the scratch until keep_alive.
-    scratch = borrowed(owned_scratch)
-    record = borrowed(record)
-    frame = borrowed(frame)
+    # Compiled without reference counting (kernels.borrow.NO_REFCOUNT): the caller
+    # holds every argument, and nothing here allocates.
     flat, nx, ny, nz = voxel_view(data)  # a dense volume's 1-D view, or a bricked one's pages
-    flat = borrowed(flat)
-    out_rgba = borrowed(out_rgba)
-    out_samples = borrowed(out_samples)
-    out_nonempty = borrowed(out_nonempty)
-    init = borrowed(init)
     cam = frame.cam
     origin = frame.origin
     inv_spacing = frame.inv_spacing
@@ -139,7 +134,6 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
                 write_pixel(out_rgba, py, px, r, g, b, a, background)
                 out_samples[py, px] = 0
                 out_nonempty[py, px] = 0
-        keep_alive(owned_scratch)
         return
     for py in range(y0, y1):
         for px in range(x0, x1):
@@ -214,7 +208,6 @@ def dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempt
             write_pixel(out_rgba, py, px, r, g, b, a, background)
             out_samples[py, px] = n_samples
             out_nonempty[py, px] = n_nonempty
-    keep_alive(owned_scratch)
 
 
 @njit(cache=True, nogil=True)
@@ -224,24 +217,28 @@ def dvr_tiles(first, last, record, data, frame, init, out_rgba, out_samples, out
     The frame is spread over threads by :func:`sparsecast.render.schedule.run_tiles`
     rather than ``prange``: Numba's parallel loops cannot take records (tuples of
     arrays) as arguments, and chunks handed out by a pool balance the load of
-    sparse frames and let a caller stop between chunks.
+    sparse frames and let a caller stop between chunks. The record's scratch is
+    allocated here, once per chunk, so that :func:`dvr_tile` allocates nothing and
+    runs without reference counting.
     """
+    scratch = make_scratch(record)
     for tile in range(first, last):
-        dvr_tile(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty)
+        dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty)
 
 
 # The same driver without the on-disk cache, for records defined outside this
 # package (a user's or a test's own index). Numba's cache index for a function
 # pickles every signature it holds, so one record class that a later process
 # cannot import would make every later cache load of ``dvr_tile`` fail.
-_dvr_tile_uncached = njit(error_model="numpy")(dvr_tile.py_func)
+_dvr_tile_uncached = njit(error_model="numpy", **NO_REFCOUNT)(dvr_tile.py_func)
 
 
 @njit(nogil=True)
 def dvr_tiles_uncached(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty):
     """:func:`dvr_tiles` without the on-disk cache (records from outside the package)."""
+    scratch = make_scratch(record)
     for tile in range(first, last):
-        _dvr_tile_uncached(tile, record, data, frame, init, out_rgba, out_samples, out_nonempty)
+        _dvr_tile_uncached(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty)
 
 
 def tiles_kernel(record):

@@ -19,6 +19,7 @@ from __future__ import annotations
 from numba import njit
 from numba.extending import overload
 
+from ...kernels.borrow import NO_REFCOUNT
 from ...kernels.ray import lattice_range
 from ...kernels.shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 from ..interval import integrate, record_class
@@ -42,7 +43,7 @@ def leaf_payload(nodes, leaf, grad_scale):
     return d, gx, gy, gz
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _composite(table, v, v_lo, scale, seg_steps, gx, gy, gz, wdx, wdy, wdz, inv_spacing, shading,
                r, g, b, a):
     """Composite one approximated sample of value ``v`` standing for ``seg_steps``
@@ -61,7 +62,7 @@ def _composite(table, v, v_lo, scale, seg_steps, gx, gy, gz, wdx, wdy, wdz, inv_
     return r + w * cr, g + w * cg, b + w * cb, a + w, True
 
 
-@overload(integrate, jit_options={"cache": True, "error_model": "numpy"})
+@overload(integrate, jit_options={"cache": True, "error_model": "numpy", **NO_REFCOUNT})
 def _integrate(record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing, dt, ert,
                shading, ray, wdir, t0, t1, k_next, k_min, k_max, acc):
     if record_class(record) is not BihApproxRecord:

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ...kernels.borrow import NO_REFCOUNT
 from ...kernels.ray import slab
 from ..interval import make_scratch, next_interval, record_class, start_ray
 from .construct import LEAF
@@ -78,7 +79,7 @@ class BihApproxRecord(NamedTuple):
     d_span: float
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def decode_inner(nodes, i, preorder):
     """``(axis, first, second, single, q0, q1)`` of inner node ``i``; ``second`` is -1
     for a single child. See :func:`sparsecast.index.bih.pack.pack_nodes`."""
@@ -100,7 +101,7 @@ def decode_inner(nodes, i, preorder):
     return axis, first, second, single, q0, q1
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def node_kind(nodes, i):
     return (nodes[i] >> 62) & 3
 
@@ -119,7 +120,7 @@ def traversal_arrays(depth):
             np.empty(6, np.float64), np.empty(3, np.float64), np.empty(3, np.float64), np.empty(3, np.bool_))
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def push_root(box, ro, rinv, rflat, t0, t1, st_node, st_t, st_box):
     """Start a traversal: clip ``[t0, t1]`` to the root ``box``; returns the stack size (0 or 1)."""
     for a in range(3):
@@ -134,7 +135,7 @@ def push_root(box, ro, rinv, rflat, t0, t1, st_node, st_t, st_box):
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def next_leaf(nodes, preorder, frame_lo, frame_step, grow, ro, rinv, rflat, st_node, st_t, st_box, hs,
               leaf_box):
     """Walk to the next leaf in front-to-back order.
@@ -219,7 +220,7 @@ def next_leaf(nodes, preorder, frame_lo, frame_step, grow, ro, rinv, rflat, st_n
     return -1, 0.0, 0.0, 0
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def set_ray(ro, rinv, rflat, ox, oy, oz, dx, dy, dz):
     """Fill the per-ray arrays :func:`next_leaf` reads."""
     ro[0] = ox

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ...kernels.borrow import NO_REFCOUNT
 from ...kernels.classify import range_is_empty
 from ..interval import next_interval, record_class, start_ray
 
@@ -62,7 +63,7 @@ class GridRecord(NamedTuple):
     ncz: int
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def dda_axis(o, d, t, cell, n_cells):
     """Start a DDA on one axis at ray parameter ``t``.
 
@@ -87,7 +88,7 @@ def dda_axis(o, d, t, cell, n_cells):
     return c, 0, math.inf, math.inf
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def dda_start(grid, ray, t0, t1):
     """DDA state at ``t0`` for a walk that ends at ``t1``.
 
@@ -100,7 +101,7 @@ def dda_start(grid, ray, t0, t1):
     return (cx, cy, cz, sx, sy, sz, tmx, tmy, tmz, tdx, tdy, tdz, t0, t1, t0 > t1)
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def dda_next(grid, state):
     """The next run of consecutive non-empty cells: ``(t0, t1, state)``; ``t0 > t1`` at the end."""
     cx, cy, cz, sx, sy, sz, tmx, tmy, tmz, tdx, tdy, tdz, t_enter, t_end, done = state

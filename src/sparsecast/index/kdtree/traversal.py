@@ -43,6 +43,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ...kernels.borrow import NO_REFCOUNT
 from ...kernels.ray import clip_box, inverse, slab
 from ..interval import make_scratch, next_interval, record_class, start_ray, start_tile
 
@@ -101,7 +102,7 @@ class KdStackRecord(NamedTuple):
     tile_leaves: int
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def widen(t_near, t_far, t_lo, t_hi):
     """Leaf interval widened by ``EPS`` (relative to the ray's interval, which is
     finite) and clipped to ``[t_lo, t_hi]``."""
@@ -109,7 +110,7 @@ def widen(t_near, t_far, t_lo, t_hi):
     return max(t_near - e, t_lo), min(t_far + e, t_hi)
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     """From position ``j`` of the leaf list, the next leaf the ray meets:
     ``(t0, t1, j_after)``, ``t0 > t1`` when none is left."""
@@ -195,7 +196,7 @@ def _outside_clip(box, planes, tol, lo, hi, n):
     return False
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def _push_children(scratch, at, c, left_first):
     """Push children ``c`` and ``c + 1`` at ``scratch[at]``, the near one last (popped first)."""
     if left_first:
@@ -206,7 +207,7 @@ def _push_children(scratch, at, c, left_first):
         scratch[at + 1] = c + 1
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
     """:func:`clip_box` of node ``n`` with the ray's inverses ``inv`` (from start_ray), widened."""
     ox, oy, oz, _, _, _ = ray
@@ -218,7 +219,7 @@ def _box_interval(ray, inv, lo, hi, n, t_lo, t_hi):
 
 
 # Once per tile, so a plain call (see index.interval, "Inlining").
-@overload(start_tile, jit_options={"cache": True})
+@overload(start_tile, jit_options={"cache": True, **NO_REFCOUNT})
 def _tile(record, scratch, corners, box, planes):
     if record_class(record) is not KdStackRecord:
         return None

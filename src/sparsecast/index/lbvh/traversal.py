@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from ...kernels.borrow import NO_REFCOUNT
 from ...kernels.ray import inverse, slab_ordered
 from ..interval import make_scratch, next_interval, record_class, start_ray
 
@@ -57,7 +58,7 @@ class LbvhRecord(NamedTuple):
     box: np.ndarray
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def _stack_push(ht, hf, hn, hs, t, tf, node):
     """Insert ``(t, tf, node)`` into the stack of size ``hs``, kept sorted by ``t``
     descending (the top, ``hs - 1``, holds the smallest); returns the new size.
@@ -78,7 +79,7 @@ def _stack_push(ht, hf, hn, hs, t, tf, node):
     return hs + 1
 
 
-@njit(cache=True, error_model="numpy")  # a plain call: see index.interval, "Inlining"
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def _node_interval(box, node, ox, oy, oz, ix, iy, iz, fx, fy, fz, sx, sy, sz):
     """Ray interval ``(t_near, t_far)`` in node ``node``'s box (empty: ``t_near > t_far``).
 
