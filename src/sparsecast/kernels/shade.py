@@ -48,6 +48,25 @@ def tf_color(table, i, f):
     )
 
 
+@njit(cache=True, inline="always")
+def _power(x, s):
+    """``x ** s`` for ``x`` in ``[0, 1]``: by repeated squaring when ``s`` is a whole
+    number up to 1024 (the default shininess, 24, takes 6 multiplications where
+    libm's ``pow`` took 4 % of a shaded isosurface frame), else by ``pow``. The two
+    differ by a few ulps."""
+    if 0.0 <= s <= 1024.0 and s == math.floor(s):
+        n = int(s)
+        r = 1.0
+        b = x
+        while n > 0:
+            if n & 1:
+                r *= b
+            b *= b
+            n >>= 1
+        return r
+    return x ** s
+
+
 @njit(cache=True, **NO_REFCOUNT)
 def blinn_phong(r, g, b, nx, ny, nz, dx, dy, dz, shading):
     """Shade straight colour ``(r, g, b)`` with a headlight (light at the eye).
@@ -64,7 +83,7 @@ def blinn_phong(r, g, b, nx, ny, nz, dx, dy, dz, shading):
         # Homogeneous region: no surface to light, keep the ambient + diffuse look.
         return min(r * (ka + kd), 1.0), min(g * (ka + kd), 1.0), min(b * (ka + kd), 1.0)
     ndl = abs(nx * dx + ny * dy + nz * dz) / length
-    spec = ks * ndl ** shading[SHADING_SHININESS]
+    spec = ks * _power(ndl, shading[SHADING_SHININESS])
     diff = ka + kd * ndl
     return min(r * diff + spec, 1.0), min(g * diff + spec, 1.0), min(b * diff + spec, 1.0)
 
