@@ -238,3 +238,37 @@ def test_surface_section_interleaves_every_method_and_reports_spread(monkeypatch
         if r["phase"] in ("render", "render_diffuse"):
             assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"] and r["ms_mad"] >= 0
             assert r["cpu_ms"] > 0 and r["mrays_cpu_s"] > 0
+
+
+@pytest.mark.parametrize("error, fix", [
+    (ImportError("libusb-1.0.so.0: cannot open shared object file: No such file or directory"),
+     "system library libusb-1.0.so.0 it loads is missing: install it (Debian/Ubuntu: apt-get install libusb-1.0-0)"),
+    (ImportError("libfoo.so.3: cannot open shared object file: No such file or directory"),
+     "system library libfoo.so.3 it loads is missing: install it to time"),
+    (ModuleNotFoundError("No module named 'open3d'"), "pip install open3d"),
+])
+def test_embree_skip_names_the_fix(monkeypatch, error, fix):
+    """Open3D failing to import is one skipped record whose reason says what to install:
+    the system library its wheel could not load, or the package."""
+    import builtins
+
+    from sparsecast.bench import surface
+    from sparsecast.surface.mesh import icosphere
+
+    real_import = builtins.__import__
+
+    def fake_import(name, *args, **kwargs):
+        if name == "open3d" or name.startswith("open3d."):
+            raise error
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", fake_import)
+    recs = []
+    # the import fails first: no camera or rays are needed
+    out = surface._embree_frames(icosphere(1), None, 4, 4, None, lambda **kw: recs.append(kw), "sphere")
+    assert out is None and len(recs) == 1
+    (rec,) = recs
+    assert rec["phase"] == "skipped" and rec["method"] == "embree"
+    assert str(error) in rec["reason"] and fix in rec["reason"]
+    if "pip" not in fix:
+        assert "pip install" not in rec["reason"]

@@ -37,6 +37,7 @@ with the median, its runs, min / max / MAD and the median CPU ms.
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 
@@ -146,6 +147,23 @@ def _cast_frame(cast: Callable[[], object]) -> Frame:
     return lambda: (cast(), None)
 
 
+#: Debian packages of the system libraries an Open3D wheel loads and a slim image may lack
+_SYSTEM_LIBRARIES = {"libusb-1.0.so.0": "libusb-1.0-0", "libGL.so.1": "libgl1", "libgomp.so.1": "libgomp1",
+                     "libEGL.so.1": "libegl1", "libX11.so.6": "libx11-6"}
+
+
+def _open3d_fix(exc: BaseException) -> str:
+    """What to do about Open3D failing to import with ``exc``: install the system library
+    its wheel could not load (named in the error), else the package itself."""
+    m = re.search(r"([\w.+-]+\.so(?:\.[\d.]+)?): cannot open shared object file", str(exc))
+    if m:
+        lib = m.group(1)
+        package = _SYSTEM_LIBRARIES.get(lib)
+        how = f" (Debian/Ubuntu: apt-get install {package})" if package else ""
+        return f"open3d is installed but the system library {lib} it loads is missing: install it{how}"
+    return "pip install open3d"
+
+
 def _embree_frames(mesh: TriangleMesh, cam: Camera, width: int, height: int, diffuse,
                    record: Callable[..., None], dataset: str) -> tuple[Frame, Frame] | None:
     """Embree's scene through Open3D, built and recorded (the first cast included), and its
@@ -155,7 +173,7 @@ def _embree_frames(mesh: TriangleMesh, cam: Camera, width: int, height: int, dif
     except Exception as exc:  # ImportError, or a missing system library behind it
         record(dataset=dataset, method="embree", phase="skipped", ms=None,
                reason=f"open3d (Embree's Python binding here) does not import: {type(exc).__name__}: {exc}; "
-                      "pip install open3d to time Embree beside the BVH")
+                      f"{_open3d_fix(exc)} to time Embree beside the BVH")
         return None
     o, d = cam.rays(width, height)
     prim = o3d.core.Tensor(np.concatenate([o, d], -1).reshape(-1, 6).astype(np.float32))
