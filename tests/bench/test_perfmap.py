@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pytest
 from numba import njit
@@ -9,6 +11,10 @@ from numba import njit
 pytest.importorskip("elftools")
 
 from sparsecast.bench.perfmap import jit_symbols, write_perf_map  # noqa: E402
+
+
+class _Target:
+    pass
 
 
 @njit
@@ -29,7 +35,12 @@ def test_map_names_compiled_functions_at_their_entry_points(tmp_path):
     cres = _kernel.overloads[_kernel.signatures[0]]
     name = cres.fndesc.llvm_func_name
     entry = cres.library.get_pointer_to_function(name)
+    # a dead weak proxy among the objects scanned (isinstance on one raises ReferenceError)
+    target = _Target()
+    dead = weakref.proxy(target)
+    del target
     path = write_perf_map(tmp_path / "perf-test.map")
+    assert dead is not None
     rows = [line.split(" ", 2) for line in path.read_text().splitlines()]
     assert all(len(r) == 3 for r in rows)
     found = {r[2]: (int(r[0], 16), int(r[1], 16)) for r in rows}

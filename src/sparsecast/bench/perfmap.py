@@ -89,7 +89,8 @@ def jit_symbols() -> list[tuple[int, int, str]]:
 
     libraries = {}
     for obj in gc.get_objects():
-        if isinstance(obj, CPUDispatcher):
+        # by the object's own type: isinstance would follow a dead weakref.proxy and raise
+        if issubclass(type(obj), CPUDispatcher):
             for cres in list(obj.overloads.values()):
                 libraries[id(cres.library)] = cres.library
     rows = set()
