@@ -208,7 +208,8 @@ def _clamp(x, n):
 
 @njit(cache=True)
 def bricked_gradient(vox, x, y, z):
-    """Central-difference gradient, equal to :func:`..sample.gradient` on the dense volume.
+    """Central-difference gradient of :func:`..sample.gradient_clamped` on the dense volume:
+    the same as :func:`..sample.gradient` up to rounding (which takes a faster path inside).
 
     Neighbours are clamped to the box as there. When the centre's brick has a slot
     all six neighbours are read from it (they lie in its apron); otherwise each is
