@@ -90,7 +90,7 @@ def _counting_calls(dispatcher, sig, options=None) -> list[str]:
     runtime's ``NRT_incref`` / ``NRT_decref``, or their atomics where LLVM inlined
     them. Compiled again uncached with the same options, updated by ``options`` (a
     copy loaded from the disk cache keeps no assembly)."""
-    opts = {k: v for k, v in dispatcher.targetoptions.items() if k != "cache"} | (options or {})
+    opts = {k: v for k, v in dispatcher.targetoptions.items() if k not in ("cache", "nopython")} | (options or {})
     fresh = njit(**opts)(dispatcher.py_func)
     fresh.compile(sig)
     asm = fresh.inspect_asm(sig)

@@ -12,11 +12,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from numba import njit
+from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
+from .packet import PACKET, PACKET_BUFFER, PACKET_SHADED, packet_capable, sample_packet, shade_packet
 from .ray import lattice_range
 from .sampler import sample_alpha, sample_color, sample_normal
 from .shade import SHADING_ENABLED, blinn_phong
+from .vectorize import lane_buffer
 
 
 class Dvr(NamedTuple):
@@ -41,7 +44,6 @@ def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, 
     )
 
 
-@njit(cache=True, inline="always")
 def march_segment(
     sampler, flat, nx, ny, nz, table, v_lo, scale,
     ox, oy, oz, dx, dy, dz,
@@ -49,7 +51,7 @@ def march_segment(
     dt, k_begin, k_end,
     acc_r, acc_g, acc_b, acc_a,
     ert, shading,
-):
+):  # pragma: no cover - replaced by an overload in jitted code
     """Composite lattice samples ``k_begin..k_end`` (inclusive) front to back.
 
     Parameters
@@ -90,6 +92,81 @@ def march_segment(
     n_samples, n_nonempty : int
         Samples taken, and how many of them had non-zero opacity.
     """
+    raise NotImplementedError("march_segment is only callable from jitted code")
+
+
+@overload(march_segment, inline="always")
+def _march_segment(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz,
+                   inv_spacing, dt, k_begin, k_end, acc_r, acc_g, acc_b, acc_a, ert, shading):
+    # The loop is picked by type: packets where the sampler and the layout allow them.
+    # Both are inlined into their caller (march_interval), as march_segment always was.
+    return _march_packets if packet_capable(sampler, flat) else _march_one_by_one
+
+
+def _march_packets(
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, k_begin, k_end,
+    acc_r, acc_g, acc_b, acc_a,
+    ert, shading,
+):
+    """(jitted via :func:`march_segment`) :func:`march_segment` classifying (and shading) :data:`.packet.PACKET` samples at
+    a time with SIMD (:mod:`.packet`), compositing them one by one."""
+    n_samples = 0
+    n_nonempty = 0
+    shade = shading[SHADING_ENABLED] != 0.0
+    # Shading in packets clamps every lane's reads into the interior (4 voxels a side).
+    shade_lanes = shade and nx >= 4 and ny >= 4 and nz >= 4
+    buf = lane_buffer(PACKET_BUFFER)
+    k = k_begin
+    while k <= k_end and acc_a < ert:
+        sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
+        stop = min(k + PACKET, k_end + 1)
+        lanes_shaded = False
+        if shade_lanes:
+            for lane in range(stop - k):
+                if buf[lane] > 0.0:
+                    lanes_shaded = True
+                    break
+            if lanes_shaded:
+                shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz, inv_spacing,
+                             shading, buf)
+        lane = 0
+        while k < stop and acc_a < ert:
+            a = buf[lane]
+            n_samples += 1
+            if a > 0.0:
+                n_nonempty += 1
+                r = buf[PACKET + lane]
+                g = buf[2 * PACKET + lane]
+                b = buf[3 * PACKET + lane]
+                if shade and not (lanes_shaded and buf[PACKET_SHADED * PACKET + lane] != 0.0):
+                    # a lane near a face (or a volume under 4 voxels a side): one sample
+                    t = k * dt
+                    r, g, b = _shade_sample(
+                        sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,
+                        r, g, b, wdx, wdy, wdz, inv_spacing, shading,
+                    )
+                w = (1.0 - acc_a) * a
+                acc_r += w * r
+                acc_g += w * g
+                acc_b += w * b
+                acc_a += w
+            lane += 1
+            k += 1
+    return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
+
+
+def _march_one_by_one(
+    sampler, flat, nx, ny, nz, table, v_lo, scale,
+    ox, oy, oz, dx, dy, dz,
+    wdx, wdy, wdz, inv_spacing,
+    dt, k_begin, k_end,
+    acc_r, acc_g, acc_b, acc_a,
+    ert, shading,
+):
+    """(jitted via :func:`march_segment`) :func:`march_segment` one sample at a time (bricked volumes, smooth labels)."""
     n_samples = 0
     n_nonempty = 0
     shade = shading[SHADING_ENABLED] != 0.0

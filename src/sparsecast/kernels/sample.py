@@ -106,47 +106,51 @@ def gradient(flat, nx, ny, nz, x, y, z):
     j0 = int(y)
     k0 = int(z)
     if 1 <= i0 and i0 + 2 < nx and 1 <= j0 and j0 + 2 < ny and 1 <= k0 and k0 + 2 < nz:
-        fx = x - i0
-        fy = y - j0
-        fz = z - k0
-        sy = nx
-        sz = nx * ny
-        b = (k0 * ny + j0) * nx + i0
-        # the centre cell: c_kji, corner k along z, j along y, i along x
-        c000 = float(flat[b])
-        c001 = float(flat[b + 1])
-        c010 = float(flat[b + sy])
-        c011 = float(flat[b + sy + 1])
-        c100 = float(flat[b + sz])
-        c101 = float(flat[b + sz + 1])
-        c110 = float(flat[b + sz + sy])
-        c111 = float(flat[b + sz + sy + 1])
-        # x: columns i0 - 1 .. i0 + 2, each bilinear in (y, z)
-        xm = _bilerp(float(flat[b - 1]), float(flat[b + sy - 1]), float(flat[b + sz - 1]),
-                     float(flat[b + sz + sy - 1]), fy, fz)
-        x0 = _bilerp(c000, c010, c100, c110, fy, fz)
-        x1 = _bilerp(c001, c011, c101, c111, fy, fz)
-        xp = _bilerp(float(flat[b + 2]), float(flat[b + sy + 2]), float(flat[b + sz + 2]),
-                     float(flat[b + sz + sy + 2]), fy, fz)
-        gx = 0.5 * ((x1 + fx * (xp - x1)) - (xm + fx * (x0 - xm)))
-        # y: rows j0 - 1 .. j0 + 2, each bilinear in (x, z)
-        ym = _bilerp(float(flat[b - sy]), float(flat[b - sy + 1]), float(flat[b + sz - sy]),
-                     float(flat[b + sz - sy + 1]), fx, fz)
-        y0 = _bilerp(c000, c001, c100, c101, fx, fz)
-        y1 = _bilerp(c010, c011, c110, c111, fx, fz)
-        yp = _bilerp(float(flat[b + 2 * sy]), float(flat[b + 2 * sy + 1]), float(flat[b + sz + 2 * sy]),
-                     float(flat[b + sz + 2 * sy + 1]), fx, fz)
-        gy = 0.5 * ((y1 + fy * (yp - y1)) - (ym + fy * (y0 - ym)))
-        # z: slices k0 - 1 .. k0 + 2, each bilinear in (x, y)
-        zm = _bilerp(float(flat[b - sz]), float(flat[b - sz + 1]), float(flat[b - sz + sy]),
-                     float(flat[b - sz + sy + 1]), fx, fy)
-        z0 = _bilerp(c000, c001, c010, c011, fx, fy)
-        z1 = _bilerp(c100, c101, c110, c111, fx, fy)
-        zp = _bilerp(float(flat[b + 2 * sz]), float(flat[b + 2 * sz + 1]), float(flat[b + 2 * sz + sy]),
-                     float(flat[b + 2 * sz + sy + 1]), fx, fy)
-        gz = 0.5 * ((z1 + fz * (zp - z1)) - (zm + fz * (z0 - zm)))
-        return gx, gy, gz
+        return interior_gradient(flat, nx, nx * ny, (k0 * ny + j0) * nx + i0, x - i0, y - j0, z - k0)
     return gradient_clamped(flat, nx, ny, nz, x, y, z)
+
+
+@njit(cache=True, inline="always")
+def interior_gradient(flat, sy, sz, b, fx, fy, fz):
+    """:func:`gradient` away from the faces: ``b`` is the address of the cell's lower
+    corner, ``sy = nx`` and ``sz = nx * ny`` the strides of y and z, ``(fx, fy, fz)`` the
+    fractions in the cell. Reads voxels ``b - sy - sz - 1 .. b + 2 (1 + sy + sz)``; the
+    caller makes sure they are inside the volume. Shared with the packets' shading
+    (:mod:`.packet`), so both take the same floats."""
+    # the centre cell: c_kji, corner k along z, j along y, i along x
+    c000 = float(flat[b])
+    c001 = float(flat[b + 1])
+    c010 = float(flat[b + sy])
+    c011 = float(flat[b + sy + 1])
+    c100 = float(flat[b + sz])
+    c101 = float(flat[b + sz + 1])
+    c110 = float(flat[b + sz + sy])
+    c111 = float(flat[b + sz + sy + 1])
+    # x: columns i0 - 1 .. i0 + 2, each bilinear in (y, z)
+    xm = _bilerp(float(flat[b - 1]), float(flat[b + sy - 1]), float(flat[b + sz - 1]),
+                 float(flat[b + sz + sy - 1]), fy, fz)
+    x0 = _bilerp(c000, c010, c100, c110, fy, fz)
+    x1 = _bilerp(c001, c011, c101, c111, fy, fz)
+    xp = _bilerp(float(flat[b + 2]), float(flat[b + sy + 2]), float(flat[b + sz + 2]),
+                 float(flat[b + sz + sy + 2]), fy, fz)
+    gx = 0.5 * ((x1 + fx * (xp - x1)) - (xm + fx * (x0 - xm)))
+    # y: rows j0 - 1 .. j0 + 2, each bilinear in (x, z)
+    ym = _bilerp(float(flat[b - sy]), float(flat[b - sy + 1]), float(flat[b + sz - sy]),
+                 float(flat[b + sz - sy + 1]), fx, fz)
+    y0 = _bilerp(c000, c001, c100, c101, fx, fz)
+    y1 = _bilerp(c010, c011, c110, c111, fx, fz)
+    yp = _bilerp(float(flat[b + 2 * sy]), float(flat[b + 2 * sy + 1]), float(flat[b + sz + 2 * sy]),
+                 float(flat[b + sz + 2 * sy + 1]), fx, fz)
+    gy = 0.5 * ((y1 + fy * (yp - y1)) - (ym + fy * (y0 - ym)))
+    # z: slices k0 - 1 .. k0 + 2, each bilinear in (x, y)
+    zm = _bilerp(float(flat[b - sz]), float(flat[b - sz + 1]), float(flat[b - sz + sy]),
+                 float(flat[b - sz + sy + 1]), fx, fy)
+    z0 = _bilerp(c000, c001, c010, c011, fx, fy)
+    z1 = _bilerp(c100, c101, c110, c111, fx, fy)
+    zp = _bilerp(float(flat[b + 2 * sz]), float(flat[b + 2 * sz + 1]), float(flat[b + 2 * sz + sy]),
+                 float(flat[b + 2 * sz + sy + 1]), fx, fy)
+    gz = 0.5 * ((z1 + fz * (zp - z1)) - (zm + fz * (z0 - zm)))
+    return gx, gy, gz
 
 
 @njit(cache=True, **NO_REFCOUNT)

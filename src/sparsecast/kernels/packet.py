@@ -1,0 +1,172 @@
+"""Eight consecutive lattice samples of one ray at once: the SIMD half of the marching loop.
+
+:func:`sample_packet` takes lattice samples ``k .. k + 7`` of a ray through the
+same functions as the scalar loop (:func:`.sampler.sample`,
+:func:`.shade.tf_alpha`, :func:`.shade.tf_color`), in a loop over the eight lanes
+that LLVM vectorises: the eight positions, the cell look-ups and the
+interpolation run as vector instructions, the corner and table reads as
+gathers. The loop is compiled with ``noalias`` arguments
+(:class:`.vectorize.NoAliasCompiler`); without it the gathers kept it scalar.
+The operations per lane are the scalar ones in the same order, and Numba forms
+no fused multiply-adds, so every lane's floats equal the scalar loop's bit for
+bit. Compositing stays scalar (:func:`.march.march_segment`): it is a running
+product in ``k`` and stops at early ray termination.
+
+Lanes are samples along one ray, not one sample of eight rays, because every
+index's intervals feed the same marching function: a packet needs nothing from
+the traversal and works for every index, every interval length and early
+termination. A packet that runs past its interval's end, or past the sample
+where the ray terminates, computes lanes that are never composited (nor counted
+as samples); their positions stay within a few steps of the volume, and every
+read is clamped into it as for any sample.
+
+With shading, :func:`shade_packet` shades the lanes the same way: the interior
+path of the central-difference gradient and Blinn-Phong, lane by lane; lanes
+near a face are left to the scalar :func:`.sample.gradient`.
+
+Measured (interleaved, naive, 512², 2 threads; 2026-12-03): unshaded dense TF
+mni152 249 -> 180 ms a frame, bonsai 297 -> 208 ms; shaded dense mni152
+577 -> 467 ms, bonsai 696 -> 553 ms; sparse TF 1.3x. In a micro-benchmark of the
+march alone (uint8, rays of about 250 samples) 51 cycles a sample scalar, 34 in
+packets (AVX2 gathers for the corners and the table; the shading's byte reads
+stay scalar loads, which LLVM judged cheaper than gathers).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit, types
+
+from .borrow import NO_REFCOUNT
+from .layout import layout_of
+from .sample import interior_gradient
+from .sampler import Nearest, Trilinear, sample
+from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_alpha, tf_color
+from .vectorize import NoAliasCompiler
+
+__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet"]
+
+#: Lanes of a packet: eight float64 lanes are two AVX2 registers (one AVX-512).
+PACKET = 8
+# Rows of the lane buffer: opacity, red, green, blue (sample_packet), then shade_packet's
+# interior flag and its scratch.
+_FLAG, _NDL, _LENGTH, _POW, _BASE = 4, 5, 6, 7, 8
+#: Row of the lane buffer where :func:`shade_packet` marks the lanes it shaded (1.0).
+PACKET_SHADED = _FLAG
+#: Length of the lane buffer of :func:`sample_packet` and :func:`shade_packet`.
+PACKET_BUFFER = 9 * PACKET
+
+
+def packet_capable(sampler, flat) -> bool:
+    """Whether samples of a sampler of Numba type ``sampler`` on voxels of Numba type
+    ``flat`` are taken in packets: trilinear or nearest samples of a dense volume.
+    (Typing-time: the marcher picks its loop by it, with no branch at run time.)"""
+    cls = getattr(sampler, "instance_class", None)
+    return ((cls is Trilinear or cls is Nearest) and layout_of(flat) == "dense"
+            and isinstance(flat, types.Array) and isinstance(flat.dtype, (types.Integer, types.Float)))
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf):
+    """Classify lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf``.
+
+    Parameters
+    ----------
+    sampler, flat, nx, ny, nz, table, v_lo, scale
+        As for :func:`.march.march_segment` (a dense volume's 1-D view).
+    ox, oy, oz, dx, dy, dz : float
+        Ray in index space: sample ``k`` is at ``o + (k * dt) * d``.
+    dt : float
+        World-space lattice step.
+    k : int
+        Lattice index of the first lane.
+    buf : (PACKET_BUFFER,) float64, C-contiguous (rows of PACKET lanes)
+        Receives, for lane ``l`` (sample ``k + l``), the step-corrected opacity at
+        ``buf[l]`` and the straight colour at ``buf[PACKET + l]``,
+        ``buf[2 PACKET + l]``, ``buf[3 PACKET + l]``. Must not overlap ``flat``
+        or ``table`` (the kernel is compiled ``noalias``).
+    """
+    for lane in range(PACKET):
+        t = (k + lane) * dt
+        v = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
+        i, f, a = tf_alpha(table, v, v_lo, scale)
+        r, g, b = tf_color(table, i, f)
+        buf[lane] = a
+        buf[PACKET + lane] = r
+        buf[2 * PACKET + lane] = g
+        buf[3 * PACKET + lane] = b
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz, inv_spacing, shading, buf):
+    """Shade the colours of a packet's lanes in ``buf`` in place (see :func:`sample_packet`).
+
+    Lane by lane this is :func:`.shade.blinn_phong` of the field's gradient taken
+    by the interior path of :func:`.sample.gradient` (a cell whose six neighbours
+    lie inside the volume): the same operations in the same order, so the same
+    floats. A lane whose cell is near a face keeps its straight colour and gets
+    ``buf[4 PACKET + lane] = 0`` (an interior lane gets 1): the caller shades it
+    one sample at a time. Needs ``nx, ny, nz >= 4``: every read is clamped into
+    the interior, so no lane reads outside the volume. Rows 5 to 8 of ``buf``
+    are scratch.
+    """
+    ka = shading[SHADING_KA]
+    kd = shading[SHADING_KD]
+    ks = shading[SHADING_KS]
+    s = shading[SHADING_SHININESS]
+    isx = inv_spacing[0]
+    isy = inv_spacing[1]
+    isz = inv_spacing[2]
+    for lane in range(PACKET):
+        t = (k + lane) * dt
+        x = ox + t * dx
+        y = oy + t * dy
+        z = oz + t * dz
+        i0 = int(x)
+        j0 = int(y)
+        k0 = int(z)
+        inside = 1 <= i0 and i0 + 2 < nx and 1 <= j0 and j0 + 2 < ny and 1 <= k0 and k0 + 2 < nz
+        # Reads clamped into the interior: an outside lane computes a value nobody uses.
+        base = (min(max(k0, 1), nz - 3) * ny + min(max(j0, 1), ny - 3)) * nx + min(max(i0, 1), nx - 3)
+        gx, gy, gz = interior_gradient(flat, nx, nx * ny, base, x - i0, y - j0, z - k0)
+        gx = gx * isx
+        gy = gy * isy
+        gz = gz * isz
+        length = math.sqrt(gx * gx + gy * gy + gz * gz)
+        ndl = abs(gx * wdx + gy * wdy + gz * wdz) / length
+        buf[_FLAG * PACKET + lane] = 1.0 if inside else 0.0
+        buf[_NDL * PACKET + lane] = ndl
+        buf[_LENGTH * PACKET + lane] = length
+        buf[_POW * PACKET + lane] = 1.0
+        buf[_BASE * PACKET + lane] = ndl
+    # ndl ** s as shade._power takes it: by squaring for whole s up to 1024 (the loop
+    # over the exponent's bits outside the lanes, so that the lane loops vectorise).
+    if 0.0 <= s <= 1024.0 and s == math.floor(s):
+        n = int(s)
+        while n > 0:
+            if n & 1:
+                for lane in range(PACKET):
+                    buf[_POW * PACKET + lane] *= buf[_BASE * PACKET + lane]
+            for lane in range(PACKET):
+                buf[_BASE * PACKET + lane] *= buf[_BASE * PACKET + lane]
+            n >>= 1
+    else:
+        for lane in range(PACKET):
+            buf[_POW * PACKET + lane] = buf[_NDL * PACKET + lane] ** s
+    flat_light = ka + kd
+    for lane in range(PACKET):
+        r = buf[PACKET + lane]
+        g = buf[2 * PACKET + lane]
+        b = buf[3 * PACKET + lane]
+        ndl = buf[_NDL * PACKET + lane]
+        spec = ks * buf[_POW * PACKET + lane]
+        diff = ka + kd * ndl
+        if buf[_LENGTH * PACKET + lane] == 0.0:
+            sr, sg, sb = min(r * flat_light, 1.0), min(g * flat_light, 1.0), min(b * flat_light, 1.0)
+        else:
+            sr, sg, sb = min(r * diff + spec, 1.0), min(g * diff + spec, 1.0), min(b * diff + spec, 1.0)
+        if buf[_FLAG * PACKET + lane] != 0.0:
+            buf[PACKET + lane] = sr
+            buf[2 * PACKET + lane] = sg
+            buf[3 * PACKET + lane] = sb
