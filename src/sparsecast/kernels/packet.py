@@ -29,7 +29,10 @@ mni152 249 -> 180 ms a frame, bonsai 297 -> 208 ms; shaded dense mni152
 577 -> 467 ms, bonsai 696 -> 553 ms; sparse TF 1.3x. In a micro-benchmark of the
 march alone (uint8, rays of about 250 samples) 51 cycles a sample scalar, 34 in
 packets (AVX2 gathers for the corners and the table; the shading's byte reads
-stay scalar loads, which LLVM judged cheaper than gathers).
+stay scalar loads, which LLVM judged cheaper than gathers). The gradient then read
+its voxels as runs (:func:`.vectorize.load_run`, 12 loads instead of 32): shaded dense
+mni152 622 -> 478 ms, bonsai 752 -> 528 ms (AMD EPYC, 2 threads, interleaved), shaded
+/ unshaded 2.0-2.1.
 """
 
 from __future__ import annotations

@@ -16,17 +16,20 @@ memory where one of them is written: give it distinct arrays (distinct rows of
 one array are distinct). :func:`lane_buffer` gives a caller a small scratch
 array on its own stack, so that a kernel which runs without the runtime
 (:data:`.borrow.NO_REFCOUNT`) has somewhere to put a packet's lanes without
-allocating.
+allocating. :func:`load_run` reads a run of neighbouring voxels with one load, where
+a loop would issue one load per voxel: in a vectorised lane loop whose reads are
+not gathers, every load is a scalar load and an insert per lane.
 """
 
 from __future__ import annotations
 
+from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.core.compiler import Compiler
 from numba.extending import intrinsic
 
-__all__ = ["NoAliasCompiler", "lane_buffer"]
+__all__ = ["NoAliasCompiler", "lane_buffer", "load_run", "run_loadable"]
 
 
 class NoAliasCompiler(Compiler):
@@ -67,3 +70,57 @@ def lane_buffer(typingctx, n):
 
     return arrty(n), codegen
 
+
+def run_loadable(flat, n: int) -> bool:
+    """Whether :func:`load_run` takes runs of ``n`` items from arrays of Numba type
+    ``flat``: a 1-D C array of integers or float32 whose ``n`` items fit one 64-bit word.
+    (Typing-time: callers pick their code by it.)"""
+    if not (isinstance(flat, types.Array) and flat.ndim == 1 and flat.layout == "C"):
+        return False
+    dt = flat.dtype
+    if isinstance(dt, types.Integer):
+        return n * dt.bitwidth <= 64
+    return dt == types.float32 and n * 32 <= 64
+
+
+@intrinsic
+def load_run(typingctx, flat, i, n):
+    """``(float(flat[i]), ..., float(flat[i + n - 1]))`` from one load.
+
+    Reads the ``n`` adjacent items as one little-endian integer (x86 and ARM in
+    their usual modes are little-endian), then takes each item out by a shift and a
+    truncation and converts it as Numba's ``float()`` does (integers to float64;
+    float32 stays float32), so values and types are exactly the element-wise reads'. ``n`` is a literal;
+    the items must lie inside ``flat`` (no bounds check, as in the kernels that use
+    it). Types: :func:`run_loadable`.
+    """
+    if not isinstance(n, types.IntegerLiteral) or not isinstance(i, types.Integer):
+        return None
+    count = n.literal_value
+    if not run_loadable(flat, count):
+        return None
+    dt = flat.dtype
+    bits = dt.bitwidth
+    ret = types.UniTuple(types.float32 if dt == types.float32 else types.float64, count)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        index = context.cast(builder, args[1], signature.args[1], types.intp)
+        item = cgutils.gep_inbounds(builder, ary.data, index)
+        word_t = ir.IntType(bits * count)
+        item_t = ir.IntType(bits)
+        word = builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
+        f64 = ir.DoubleType()
+        values = []
+        for j in range(count):
+            part = builder.trunc(builder.lshr(word, ir.Constant(word_t, j * bits)) if j else word, item_t)
+            if dt == types.float32:
+                v = builder.bitcast(part, ir.FloatType())
+            elif dt.signed:
+                v = builder.sitofp(part, f64)
+            else:
+                v = builder.uitofp(part, f64)
+            values.append(v)
+        return context.make_tuple(builder, ret, values)
+
+    return ret(flat, i, n), codegen
