@@ -126,7 +126,7 @@ def interior_gradient(flat, sy, sz, b, fx, fy, fz):  # pragma: no cover - replac
     either side. Where they allow it (:func:`.vectorize.run_loadable`) they are read as
     runs along x, one load per run: the four x-lines of four voxels (``i0 - 1 .. i0 + 2``,
     the centre cell's corners among them) and eight pairs ``(i0, i0 + 1)`` for y and z,
-    12 loads instead of 32 (uint8 and uint16 data; float32 in pairs, 16). Values and
+    12 loads instead of 32 (8- and 16-bit data; float32 in pairs, 16). Values and
     arithmetic are the same either way, so the gradient is the same float.
     """
     raise NotImplementedError("interior_gradient is only callable from jitted code")
@@ -134,19 +134,15 @@ def interior_gradient(flat, sy, sz, b, fx, fy, fz):  # pragma: no cover - replac
 
 @overload(interior_gradient, inline="always")
 def _interior_gradient(flat, sy, sz, b, fx, fy, fz):
-    if run_loadable(flat, 4):
-        return _interior_gradient_runs4
-    if run_loadable(flat, 2):
-        return _interior_gradient_runs2
-    return _interior_gradient_items
+    return _interior_gradient_runs if run_loadable(flat, 2) else _interior_gradient_items
 
 
-def _interior_gradient_runs4(flat, sy, sz, b, fx, fy, fz):
+def _interior_gradient_runs(flat, sy, sz, b, fx, fy, fz):
     # x-lines i0 - 1 .. i0 + 2 at (j0, k0), (j0 + 1, k0), (j0, k0 + 1), (j0 + 1, k0 + 1)
-    m00, c000, c001, p00 = load_run(flat, b - 1, 4)
-    m01, c010, c011, p01 = load_run(flat, b + sy - 1, 4)
-    m10, c100, c101, p10 = load_run(flat, b + sz - 1, 4)
-    m11, c110, c111, p11 = load_run(flat, b + sz + sy - 1, 4)
+    m00, c000, c001, p00 = _x_line(flat, b - 1)
+    m01, c010, c011, p01 = _x_line(flat, b + sy - 1)
+    m10, c100, c101, p10 = _x_line(flat, b + sz - 1)
+    m11, c110, c111, p11 = _x_line(flat, b + sz + sy - 1)
     return _central_differences(
         (c000, c001, c010, c011, c100, c101, c110, c111), (m00, m01, m10, m11), (p00, p01, p10, p11),
         load_run(flat, b - sy, 2) + load_run(flat, b + sz - sy, 2),
@@ -157,24 +153,22 @@ def _interior_gradient_runs4(flat, sy, sz, b, fx, fy, fz):
     )
 
 
-def _interior_gradient_runs2(flat, sy, sz, b, fx, fy, fz):
-    # the x-lines as two pairs each: (i0 - 1, i0) and (i0 + 1, i0 + 2)
-    m00, c000 = load_run(flat, b - 1, 2)
-    c001, p00 = load_run(flat, b + 1, 2)
-    m01, c010 = load_run(flat, b + sy - 1, 2)
-    c011, p01 = load_run(flat, b + sy + 1, 2)
-    m10, c100 = load_run(flat, b + sz - 1, 2)
-    c101, p10 = load_run(flat, b + sz + 1, 2)
-    m11, c110 = load_run(flat, b + sz + sy - 1, 2)
-    c111, p11 = load_run(flat, b + sz + sy + 1, 2)
-    return _central_differences(
-        (c000, c001, c010, c011, c100, c101, c110, c111), (m00, m01, m10, m11), (p00, p01, p10, p11),
-        load_run(flat, b - sy, 2) + load_run(flat, b + sz - sy, 2),
-        load_run(flat, b + 2 * sy, 2) + load_run(flat, b + sz + 2 * sy, 2),
-        load_run(flat, b - sz, 2) + load_run(flat, b - sz + sy, 2),
-        load_run(flat, b + 2 * sz, 2) + load_run(flat, b + 2 * sz + sy, 2),
-        fx, fy, fz,
-    )
+def _x_line(flat, a):  # pragma: no cover - replaced by an overload in jitted code
+    """Voxels ``a .. a + 3`` of a row along x: one load (8- and 16-bit voxels) or two."""
+    raise NotImplementedError("only callable from jitted code")
+
+
+@overload(_x_line, inline="always")
+def _x_line_by_type(flat, a):
+    return _x_line_one_load if run_loadable(flat, 4) else _x_line_two_loads
+
+
+def _x_line_one_load(flat, a):
+    return load_run(flat, a, 4)
+
+
+def _x_line_two_loads(flat, a):
+    return load_run(flat, a, 2) + load_run(flat, a + 2, 2)
 
 
 def _interior_gradient_items(flat, sy, sz, b, fx, fy, fz):
