@@ -111,6 +111,33 @@ def test_packets_equal_scalar_marching(dtype, sampler, shaded):
     assert (scalar[:, 3] >= ert).sum() > 50  # early termination happened
 
 
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+@pytest.mark.parametrize("nx", [1, 2, 3])
+@pytest.mark.parametrize("shaded", [False, True], ids=["unshaded", "shaded"])
+def test_packets_on_thin_volumes(dtype, nx, shaded):
+    """Under two voxels along x the packets read corners one by one (a pair would run past
+    the row); at two and more in pairs; under four a side they shade lane by lane with the
+    scalar gradient: the scalar loop's floats in every case."""
+    rng = np.random.default_rng(nx)
+    nz, ny = 9, 7
+    data = (rng.random((nz, ny, nx)) * 200).astype(dtype)
+    table = np.zeros((64, 4), np.float32)
+    table[:, :3] = rng.random((64, 3))
+    table[8:, 3] = rng.uniform(0.0, 0.3, 56)
+    n = 1500
+    org = rng.uniform(-1.0, [nx + 0.5, ny + 1.0, nz + 1.0], (n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    dt = 0.29
+    t0 = rng.uniform(0.0, 4.0, n)
+    spans = np.stack([t0, t0 + rng.uniform(0.0, 30 * dt, n), np.floor(t0 / dt), np.floor(t0 / dt) + 40], axis=1)
+    shading = np.array([1.0 if shaded else 0.0, 0.2, 0.7, 0.3, 24.0])
+    out = _both(Trilinear(), data.reshape(-1), nx, ny, nz, table, 0.0, 64 / 200, np.concatenate([org, d], axis=1),
+                spans, np.ones(3), dt, 0.95, shading)
+    assert np.array_equal(out[:, 0], out[:, 1])
+    assert (out[:, 1, 6] > PACKET).sum() > 100  # many rays composited more than a packet
+
+
 def _packed_double_ops(dispatcher, sig) -> int:
     asm = dispatcher.inspect_asm(sig)
     name = dispatcher.overloads[sig].fndesc.llvm_func_name
