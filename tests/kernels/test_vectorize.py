@@ -46,4 +46,15 @@ def test_run_loadable():
     assert run_loadable(types.Array(types.float32, 1, "C"), 2)
     assert not run_loadable(types.Array(types.float64, 1, "C"), 2)
     assert not run_loadable(types.Array(types.uint8, 1, "A"), 2)  # strided views read items one by one
-    assert not run_loadable(types.Array(types.uint8, 3, "C"), 2)
+    assert run_loadable(types.Array(types.float32, 2, "C"), 2)  # items in C order
+
+
+@njit
+def _row_pairs(table, i):
+    return load_run(table, 4 * i, 2) + load_run(table, 4 * i + 2, 2)
+
+
+def test_runs_of_a_2d_array_go_in_c_order():
+    table = np.random.default_rng(1).random((9, 4)).astype(np.float32)
+    for i in range(9):
+        assert _row_pairs(table, i) == tuple(float(v) for v in table[i])

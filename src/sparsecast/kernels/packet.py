@@ -1,11 +1,13 @@
 """Eight consecutive lattice samples of one ray at once: the SIMD half of the marching loop.
 
-:func:`sample_packet` takes lattice samples ``k .. k + 7`` of a ray through the
-same functions as the scalar loop (:func:`.sampler.sample`,
-:func:`.shade.tf_alpha`, :func:`.shade.tf_color`), in a loop over the eight lanes
-that LLVM vectorises: the eight positions, the cell look-ups and the
-interpolation run as vector instructions, the corner and table reads as
-gathers. The loop is compiled with ``noalias`` arguments
+:func:`sample_packet` takes lattice samples ``k .. k + 7`` of a ray with the
+scalar loop's arithmetic (:func:`.sampler.sample`, :func:`.shade.tf_alpha`,
+:func:`.shade.tf_color`), in a loop over the eight lanes that LLVM vectorises:
+the eight positions, the cell look-ups, the interpolation and the table blend
+run as vector instructions. Its reads are adjacent pairs, one load each: the
+trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
+``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
+scalar load and an insert per lane. The loop is compiled with ``noalias`` arguments
 (:class:`.vectorize.NoAliasCompiler`); without it the gathers kept it scalar.
 The operations per lane are the scalar ones in the same order, and Numba forms
 no fused multiply-adds, so every lane's floats equal the scalar loop's bit for
@@ -47,7 +49,7 @@ from .borrow import NO_REFCOUNT
 from .layout import layout_of
 from .sample import interior_gradient, trilinear_pairs
 from .sampler import Nearest, Trilinear, sample
-from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_alpha, tf_color
+from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
 from .vectorize import NoAliasCompiler
 
 __all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet"]
@@ -108,8 +110,7 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
 
 @njit(cache=True, inline="always")
 def _classify(table, v, v_lo, scale, lane, buf):
-    i, f, a = tf_alpha(table, v, v_lo, scale)
-    r, g, b = tf_color(table, i, f)
+    a, r, g, b = tf_rgba(table, v, v_lo, scale)
     buf[lane] = a
     buf[PACKET + lane] = r
     buf[2 * PACKET + lane] = g

@@ -73,9 +73,9 @@ def lane_buffer(typingctx, n):
 
 def run_loadable(flat, n: int) -> bool:
     """Whether :func:`load_run` takes runs of ``n`` items from arrays of Numba type
-    ``flat``: a 1-D C array of integers or float32 whose ``n`` items fit one 64-bit word.
-    (Typing-time: callers pick their code by it.)"""
-    if not (isinstance(flat, types.Array) and flat.ndim == 1 and flat.layout == "C"):
+    ``flat``: a C-contiguous array of integers or float32 whose ``n`` items fit one
+    64-bit word. (Typing-time: callers pick their code by it.)"""
+    if not (isinstance(flat, types.Array) and flat.ndim >= 1 and flat.layout == "C"):
         return False
     dt = flat.dtype
     if isinstance(dt, types.Integer):
@@ -87,7 +87,8 @@ def run_loadable(flat, n: int) -> bool:
 def load_run(typingctx, flat, i, n):
     """``(float(flat[i]), ..., float(flat[i + n - 1]))`` from one load.
 
-    Reads the ``n`` adjacent items as one little-endian integer (x86 and ARM in
+    ``i`` is the item's position in C order (for a 2-D ``(m, 4)`` array, item ``(r, c)``
+    is ``4 r + c``). Reads the ``n`` adjacent items as one little-endian integer (x86 and ARM in
     their usual modes are little-endian), then takes each item out by a shift and a
     truncation and converts it as Numba's ``float()`` does (integers to float64;
     float32 stays float32), so values and types are exactly the element-wise reads'. ``n`` is a literal;
