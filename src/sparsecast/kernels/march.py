@@ -28,6 +28,14 @@ class Dvr(NamedTuple):
     tag: int = 0
 
 
+@njit(cache=True, inline="always")
+def over(acc_r, acc_g, acc_b, acc_a, r, g, b, a):
+    """Front-to-back "over" of a straight-colour sample ``(r, g, b, a)`` behind the
+    premultiplied accumulation: the one compositing step of every marching loop."""
+    w = (1.0 - acc_a) * a
+    return acc_r + w * r, acc_g + w * g, acc_b + w * b, acc_a + w
+
+
 @njit(cache=True, **NO_REFCOUNT)
 def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing,
                   shading):
@@ -148,11 +156,7 @@ def _march_packets(
                         sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,
                         r, g, b, wdx, wdy, wdz, inv_spacing, shading,
                     )
-                w = (1.0 - acc_a) * a
-                acc_r += w * r
-                acc_g += w * g
-                acc_b += w * b
-                acc_a += w
+                acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
             lane += 1
             k += 1
     return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
@@ -186,11 +190,7 @@ def _march_one_by_one(
                     sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz,
                     inv_spacing, shading,
                 )
-            w = (1.0 - acc_a) * a
-            acc_r += w * r
-            acc_g += w * g
-            acc_b += w * b
-            acc_a += w
+            acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
         k += 1
     return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
 
@@ -264,5 +264,5 @@ def cap_sample(
     r, g, b = sample_color(sampler, table, look)
     r, g, b = blinn_phong(r, g, b, gx * inv_spacing[0], gy * inv_spacing[1], gz * inv_spacing[2],
                           wdx, wdy, wdz, cap)
-    w = (1.0 - acc_a) * a
-    return acc_r + w * r, acc_g + w * g, acc_b + w * b, acc_a + w, 1
+    acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
+    return acc_r, acc_g, acc_b, acc_a, 1
