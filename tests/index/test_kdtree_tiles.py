@@ -38,7 +38,7 @@ def _tile_intervals(record, cam, origin, inv_spacing, width, height, box, planes
         live[tile] = start_tile(record, scratch,
                                 tile_corner_rays(cam, x0, x1, y0, y1, width, height, origin, inv_spacing),
                                 box, planes)
-        listed[tile] = scratch[0]
+        listed[tile] = scratch[0][0]  # the leaf count (kdtree.traversal._scratch)
         for py in range(y0, y1):
             for px in range(x0, x1):
                 r = index_space_ray(cam, px, py, width, height, origin, inv_spacing)

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sparsecast.kernels.ray import clip_box, clip_lattice, lattice_range
+from sparsecast.kernels.ray import BOX_ROWS, clip_box, clip_box_list, clip_lattice, inverse, lattice_range
 
 
 def _brute(o, d, lo, hi, open_lo, open_hi, dt, k_max=400):
@@ -63,3 +63,30 @@ def test_axis_parallel_ray_on_a_face():
     assert (k0, k1) == (2, 10)  # z from 0 to 4 at t = 1 .. 5
     k0, k1, _, _ = clip_lattice(0.0, 2.0, -1.0, 0.0, 0.0, 1.0, *lo, *hi, True, False, False, False, False, False, True, 0.5)
     assert k0 > k1  # the ray lies in the open x = 0 face
+
+
+def _widened(o, d, lo, hi, pad, t_lo, t_hi):
+    tn, tf = clip_box(*o, *d, *lo, *hi)
+    return max(tn - pad, t_lo), min(tf + pad, t_hi)
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.sampled_from([1.0, -1.0]),
+       st.sampled_from([1.0, -1.0]), st.sampled_from([1.0, -1.0]))
+def test_clip_box_list_equals_clip_box_bit_for_bit(seed, count, sx, sy, sz):
+    # Every sign of the direction (the near/far rows swap per axis), boxes the ray
+    # misses, flat boxes, and a ray starting inside some boxes.
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(-4, 4, (3, count))
+    hi = lo + rng.uniform(0, 3, (3, count)) * (rng.random((3, count)) > 0.1)
+    boxes = np.vstack([lo, hi])
+    assert boxes.shape[0] == BOX_ROWS
+    o = tuple(rng.uniform(-3, 3, 3))
+    d = tuple(np.array([sx, sy, sz]) * rng.uniform(0.05, 1.0, 3))
+    inv = [inverse.py_func(c)[0] for c in d]
+    pad, t_lo, t_hi = 1e-7, float(rng.uniform(0, 2)), float(rng.uniform(2, 20))
+    out = np.full((2, count + 3), np.nan)
+    clip_box_list(boxes, count, *o, *inv, pad, t_lo, t_hi, out)
+    for i in range(count):
+        want = _widened(o, d, lo[:, i], hi[:, i], pad, t_lo, t_hi)
+        assert (out[0, i], out[1, i]) == want, i
+    assert np.isnan(out[:, count:]).all()  # only the first `count` columns are written

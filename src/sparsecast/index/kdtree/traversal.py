@@ -24,7 +24,12 @@ those boxes. A node dropped this way meets no ray of the tile, so every ray
 meets the same leaves in the same order as its own traversal would. The order is
 the per-ray rule when the four corners agree on the sign of the split axis's
 direction (then every ray of the tile does), else the eye's side (perspective:
-the tile's rays share one eye).
+the tile's rays share one eye). :func:`start_tile` also copies the listed boxes
+into rows, and each ray clips the whole list at once in ``start_ray``
+(:func:`~sparsecast.kernels.ray.clip_box_list`, a loop LLVM vectorises, with the
+floats of :func:`_box_interval`); ``next_interval`` then only skips the empty
+intervals. A ray parallel to an axis clips box by box (``clip_box``'s explicit
+path for ``d == 0``).
 
 Clip culling. Every sample the driver takes lies in the frame's clip box and on the
 kept side of its clip planes (up to the rounding of one ray position), and a sample
@@ -44,7 +49,7 @@ from numba import njit
 from numba.extending import overload
 
 from ...kernels.borrow import NO_REFCOUNT
-from ...kernels.ray import clip_box, inverse, slab
+from ...kernels.ray import BOX_ROWS, clip_box, clip_box_list, inverse, slab
 from ..interval import make_scratch, next_interval, record_class, start_ray, start_tile
 
 __all__ = ["KdListRecord", "KdStackRecord", "EPS", "TILE_LEAVES", "FRUSTUM_TOL", "widen", "next_listed_leaf"]
@@ -102,11 +107,17 @@ class KdStackRecord(NamedTuple):
     tile_leaves: int
 
 
+@njit(cache=True, inline="always")
+def widening(t_lo, t_hi):
+    """How far :func:`widen` widens a leaf's interval on a ray whose interval is
+    ``[t_lo, t_hi]`` (finite): ``EPS`` relative to it."""
+    return EPS * (1.0 + abs(t_lo) + abs(t_hi))
+
+
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
 def widen(t_near, t_far, t_lo, t_hi):
-    """Leaf interval widened by ``EPS`` (relative to the ray's interval, which is
-    finite) and clipped to ``[t_lo, t_hi]``."""
-    e = EPS * (1.0 + abs(t_lo) + abs(t_hi))
+    """Leaf interval widened by :func:`widening` and clipped to ``[t_lo, t_hi]``."""
+    e = widening(t_lo, t_hi)
     return max(t_near - e, t_lo), min(t_far + e, t_hi)
 
 
@@ -228,18 +239,21 @@ def _tile(record, scratch, corners, box, planes):
         return None
 
     def impl(record, scratch, corners, box, planes):
-        # The tile's leaves front to back, culled by its frustum: scratch[0] is their
+        # The tile's leaves front to back, culled by its frustum: ints[0] is their
         # count (-1: more than tile_leaves, rays traverse the tree themselves),
-        # scratch[1:1 + tile_leaves] the leaves' nodes, the rest a stack.
+        # ints[1:1 + tile_leaves] the leaves' nodes, the rest a stack; their boxes
+        # go to the columns of `boxes` in the same order (see _scratch).
         # Order: the per-ray rule (near child by the direction's sign) when the four
         # corner rays agree on the split axis; else (perspective: one eye) the eye's
         # side, which is front to back for every ray from that eye.
+        ints = scratch[0]  # indexed, not unpacked: see _start
+        boxes = scratch[1]
         lo = record.node_lo
         hi = record.node_hi
         axis = record.node_axis
         child = record.node_child
         cap = record.tile_leaves
-        scratch[0] = 0 if cap > 0 else -1
+        ints[0] = 0 if cap > 0 else -1
         if axis.shape[0] == 0:
             return False  # an empty tree: no ray meets a leaf
         if cap == 0:
@@ -252,21 +266,21 @@ def _tile(record, scratch, corners, box, planes):
         x0, y0, z0, x1, y1, z1 = box
         ctol = FRUSTUM_TOL * (1.0 + max(abs(x0), abs(y0), abs(z0), abs(x1), abs(y1), abs(z1)))
         base = 1 + cap  # the stack, as offsets into scratch (no slice: a view per call)
-        scratch[base] = 0
+        ints[base] = 0
         sp = 1
         count = 0
         while sp > 0:
             sp -= 1
-            n = scratch[base + sp]
+            n = ints[base + sp]
             if _outside(p0, lo, hi, n) or _outside(p1, lo, hi, n) or _outside(p2, lo, hi, n) \
                     or _outside(p3, lo, hi, n) or _outside_clip(box, planes, ctol, lo, hi, n):
                 continue
             ax = axis[n]
             if ax < 0:
                 if count == cap:
-                    scratch[0] = -1
+                    ints[0] = -1
                     return True
-                scratch[1 + count] = n
+                ints[1 + count] = n
                 count += 1
                 continue
             c = child[n]
@@ -281,9 +295,14 @@ def _tile(record, scratch, corners, box, planes):
                 left_first = False
             else:
                 left_first = eye[ax] <= hi[c, ax]
-            _push_children(scratch, base + sp, c, left_first)
+            _push_children(ints, base + sp, c, left_first)
             sp += 2
-        scratch[0] = count
+        ints[0] = count
+        for i in range(count):
+            n = ints[1 + i]
+            for a in range(3):
+                boxes[a, i] = lo[n, a]
+                boxes[3 + a, i] = hi[n, a]
         # An empty list: the frustum meets no leaf, so no ray of the tile does.
         return count > 0
 
@@ -298,30 +317,50 @@ def _start(record, scratch, ray, t_lo, t_hi):
     if cls is KdStackRecord:
 
         def impl(record, scratch, ray, t_lo, t_hi):
-            # List mode: position 0 of the tile's list (stack pointer -1); stack
-            # mode (the tile's list overflowed): the root on the stack.
-            listed = scratch[0]
+            # List mode: position 0 of the tile's list, its intervals clipped at once
+            # into `spans` (stack pointer -1), or, for a ray parallel to an axis, box
+            # by box (-2); stack mode (the tile's list overflowed): the root on the stack.
+            # The scratch tuple is indexed, not unpacked: unpacking it here lost the
+            # store of the stack's root (Numba 0.68; next_interval then read garbage).
+            ints = scratch[0]
+            # The ray's slab inverses, once per ray rather than once per node box
+            # (the same floats :func:`clip_box` computes).
+            ox, oy, oz, dx, dy, dz = ray
+            ix, fx = inverse(dx)
+            iy, fy = inverse(dy)
+            iz, fz = inverse(dz)
+            listed = ints[0]
             sp = -1
             if listed < 0:
                 sp = 0
                 if record.node_axis.shape[0] > 0:
-                    scratch[1 + record.tile_leaves] = 0
+                    ints[1 + record.tile_leaves] = 0
                     sp = 1
-            # The ray's slab inverses, once per ray rather than once per node box
-            # (the same floats :func:`clip_box` computes).
-            _, _, _, dx, dy, dz = ray
-            ix, fx = inverse(dx)
-            iy, fy = inverse(dy)
-            iz, fz = inverse(dz)
+            elif fx or fy or fz:
+                sp = -2
+            else:
+                clip_box_list(scratch[1], listed, ox, oy, oz, ix, iy, iz, widening(t_lo, t_hi), t_lo, t_hi,
+                              scratch[2])
             return (0, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
 
         return impl
 
 
+@njit(cache=True)
+def _stack_scratch(tile_leaves, stack_size):
+    """A deep k-d tree's scratch ``(ints, boxes, spans)``: the tile's leaf count, its
+    leaves and the per-ray stack; the listed leaves' boxes (rows
+    :data:`~sparsecast.kernels.ray.BOX_ROWS`); one ray's interval per listed leaf
+    (rows ``t0, t1``, filled by ``start_ray``)."""
+    n = max(tile_leaves, 1)
+    return (np.empty(1 + tile_leaves + stack_size, np.int32), np.empty((BOX_ROWS, n), np.float64),
+            np.empty((2, n), np.float64))
+
+
 @overload(make_scratch, jit_options={"cache": True}, inline="always")
 def _scratch(record):
     if record_class(record) is KdStackRecord:
-        return lambda record: np.empty(1 + record.tile_leaves + record.stack_size, np.int32)
+        return lambda record: _stack_scratch(record.tile_leaves, record.stack_size)
 
 
 @overload(next_interval, jit_options={"cache": True}, inline="always")
@@ -346,11 +385,22 @@ def _next(record, scratch, ray, state, t_covered):
             _, _, _, dx, dy, dz = ray
             lo = record.node_lo
             hi = record.node_hi
-            if sp < 0:
-                # The tile's leaf list, in its visibility order.
-                count = scratch[0]
+            ints = scratch[0]  # indexed, not unpacked: see _start
+            spans = scratch[2]
+            count = ints[0]
+            if sp == -1:
+                # The tile's leaf list, in its visibility order, clipped by start_ray.
                 while j < count:
-                    n = scratch[1 + j]
+                    t0 = spans[0, j]
+                    t1 = spans[1, j]
+                    j += 1
+                    if t0 <= t1:
+                        return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+            if sp < 0:
+                # The same list box by box (a ray parallel to an axis).
+                while j < count:
+                    n = ints[1 + j]
                     j += 1
                     t0, t1 = _box_interval(ray, inv, lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2],
                                            t_lo, t_hi)
@@ -360,7 +410,7 @@ def _next(record, scratch, ray, state, t_covered):
             base = 1 + record.tile_leaves
             while sp > 0:
                 sp -= 1
-                n = scratch[base + sp]
+                n = ints[base + sp]
                 t0, t1 = _box_interval(ray, inv, lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2],
                                        t_lo, t_hi)
                 if t0 > t1:
@@ -370,7 +420,7 @@ def _next(record, scratch, ray, state, t_covered):
                     return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
                 c = record.node_child[n]
                 d = dx if ax == 0 else (dy if ax == 1 else dz)
-                _push_children(scratch, base + sp, c, d >= 0.0)
+                _push_children(ints, base + sp, c, d >= 0.0)
                 sp += 2
             return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
 
