@@ -26,8 +26,10 @@ from numba import njit
 from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
+from .layout import layout_of
 from .ray import lattice_range
-from .sampler import sample, sample_gradient
+from .sample import cell_of, cell_values, lerp8
+from .sampler import Trilinear, sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 __all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
@@ -84,22 +86,80 @@ def _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, t):
     return sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
 
 
+def _refine(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):  # pragma: no cover
+    """``t`` in ``[ta, tb]`` where the field crosses ``v`` (``ga``, ``gb``: field minus ``v`` at the ends).
+
+    :data:`ISO_STEPS` bisection steps on the sampled field, then one secant step;
+    an overload picks the loop by sampler and layout (:func:`_refine_cells` for
+    trilinear dense volumes, :func:`_refine_sampled` otherwise), the floats are
+    the same.
+    """
+    raise NotImplementedError("_refine is only callable from jitted code")
+
+
+@overload(_refine)
+def _refine_ol(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
+    if getattr(sampler, "instance_class", None) is Trilinear and layout_of(flat) == "dense":
+        return lambda sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v: _refine_cells(
+            flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v)
+    return lambda sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v: _refine_sampled(
+        sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v)
+
+
+@njit(cache=True, inline="always")
+def _halve(ta, tb, ga, gb, tm, gm, above):
+    """The half of the bracket ``[ta, tb]`` that still holds the crossing, given ``gm`` at ``tm``."""
+    if (gm >= 0.0) == above:
+        return tm, tb, gm, gb
+    return ta, tm, ga, gm
+
+
+@njit(cache=True, inline="always")
+def _secant(ta, tb, ga, gb):
+    if ga == gb:
+        return tb
+    return ta + (tb - ta) * (ga / (ga - gb))
+
+
 @njit(cache=True, **NO_REFCOUNT)
-def _refine(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
-    """``t`` in ``[ta, tb]`` where the field crosses ``v`` (``ga``, ``gb``: field minus ``v`` at the ends)."""
+def _refine_sampled(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
+    """:func:`_refine` with one full sample a step (any sampler, either layout)."""
     above = ga >= 0.0
     for _ in range(ISO_STEPS):
         tm = 0.5 * (ta + tb)
         gm = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, tm) - v
-        if (gm >= 0.0) == above:
-            ta = tm
-            ga = gm
-        else:
-            tb = tm
-            gb = gm
-    if ga == gb:
-        return tb
-    return ta + (tb - ta) * (ga / (ga - gb))
+        ta, tb, ga, gb = _halve(ta, tb, ga, gb, tm, gm, above)
+    return _secant(ta, tb, ga, gb)
+
+
+@njit(cache=True, **NO_REFCOUNT)
+def _refine_cells(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
+    """:func:`_refine_sampled` for a trilinear dense volume, reading a cell's corners once.
+
+    The bracket is one lattice step long and shrinks, so most midpoints fall in the
+    cell of the one before; their eight corner loads, on the bisection's serial
+    dependency chain, are the step's main cost. :func:`.sample.cell_values` and
+    :func:`.sample.lerp8` are what :func:`.sample.trilinear` computes, so each
+    step's value is the same float.
+    """
+    above = ga >= 0.0
+    ci = -1
+    cj = -1
+    ck = -1
+    # Typed as cell_values types them (float32 voxels stay float32, as in trilinear);
+    # 0.0 would make the corners float64 and change the floats. ci = -1 loads them.
+    v000 = v001 = v010 = v011 = v100 = v101 = v110 = v111 = float(flat[0])
+    for _ in range(ISO_STEPS):
+        tm = 0.5 * (ta + tb)
+        i0, i1, fx, j0, j1, fy, k0, k1, fz = cell_of(ox + tm * dx, oy + tm * dy, oz + tm * dz, nx, ny, nz)
+        if i0 != ci or j0 != cj or k0 != ck:
+            v000, v001, v010, v011, v100, v101, v110, v111 = cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1)
+            ci = i0
+            cj = j0
+            ck = k0
+        gm = lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz) - v
+        ta, tb, ga, gb = _halve(ta, tb, ga, gb, tm, gm, above)
+    return _secant(ta, tb, ga, gb)
 
 
 @njit(cache=True, **NO_REFCOUNT)

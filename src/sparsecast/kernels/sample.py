@@ -48,6 +48,31 @@ def trilinear(flat, nx, ny, nz, x, y, z):
     i0, i1, fx = _axis(x, nx)
     j0, j1, fy = _axis(y, ny)
     k0, k1, fz = _axis(z, nz)
+    v000, v001, v010, v011, v100, v101, v110, v111 = cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1)
+    return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
+
+
+@njit(cache=True, inline="always")
+def cell_of(x, y, z, nx, ny, nz):
+    """The trilinear cell of ``(x, y, z)`` as :func:`trilinear` picks it.
+
+    Returns ``(i0, i1, fx, j0, j1, fy, k0, k1, fz)``: per axis the lower and upper
+    voxel and the (unclamped) fraction, see :func:`_axis`.
+    """
+    i0, i1, fx = _axis(x, nx)
+    j0, j1, fy = _axis(y, ny)
+    k0, k1, fz = _axis(z, nz)
+    return i0, i1, fx, j0, j1, fy, k0, k1, fz
+
+
+@njit(cache=True, inline="always")
+def cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1):
+    """The eight corner values ``v_kji`` of a cell of :func:`cell_of`, as float64.
+
+    ``trilinear(...) == lerp8(*cell_values(...), fx, fy, fz)`` bit for bit: a
+    caller that samples one cell several times (the isosurface bisection) reads
+    its corners once.
+    """
     row0 = k0 * ny
     row1 = k1 * ny
     a00 = (row0 + j0) * nx
@@ -55,15 +80,10 @@ def trilinear(flat, nx, ny, nz, x, y, z):
     a10 = (row1 + j0) * nx
     a11 = (row1 + j1) * nx
     # Loads are converted to float first: unsigned differences would wrap.
-    v000 = float(flat[a00 + i0])
-    v001 = float(flat[a00 + i1])
-    v010 = float(flat[a01 + i0])
-    v011 = float(flat[a01 + i1])
-    v100 = float(flat[a10 + i0])
-    v101 = float(flat[a10 + i1])
-    v110 = float(flat[a11 + i0])
-    v111 = float(flat[a11 + i1])
-    return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
+    return (
+        float(flat[a00 + i0]), float(flat[a00 + i1]), float(flat[a01 + i0]), float(flat[a01 + i1]),
+        float(flat[a10 + i0]), float(flat[a10 + i1]), float(flat[a11 + i0]), float(flat[a11 + i1]),
+    )
 
 
 def trilinear_pairs(flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by an overload in jitted code
