@@ -269,6 +269,39 @@ def test_wide_layout_finds_the_binary_layouts_hits(rng, mip_levels):
     np.testing.assert_allclose(hw.normals[same], hb.normals[same], atol=1e-6)
 
 
+def test_wide_layout_box_test_keeps_axis_parallel_and_face_plane_rays():
+    # The wide layout's float32 box test (kernels.simd.slab4, conservative) against
+    # the binary layout's float64 one: rays along the axes, in the coarse box's face
+    # planes, with components under D_FLUSH, and grazing the plane.
+    mesh = _mixed_mesh()
+    binary = build_rbvh(mesh, "Q3", layout="binary")
+    wide = build_rbvh(mesh, "Q3")
+    g = np.linspace(0.0, 1.0, 41)
+    xs, ys = np.meshgrid(np.r_[g, 0.3, 0.6], np.r_[g, 0.3, 0.7])
+    n = xs.size
+    down = (np.c_[xs.ravel(), ys.ravel(), np.full(n, 2.0)], np.tile([0.0, 0.0, -1.0], (n, 1)))
+    tiny = (down[0], np.tile([1e-20, -1e-19, -1.0], (n, 1)))
+    zs = np.r_[np.linspace(0.0, 0.6, 25), 0.2, 0.5]
+    yy, zz = np.meshgrid(np.r_[g, 0.3, 0.7], zs)
+    m = yy.size
+    along_x = (np.c_[np.full(m, -1.0), yy.ravel(), zz.ravel()], np.tile([1.0, 0.0, 0.0], (m, 1)))
+    back_x = (np.c_[np.full(m, 2.0), yy.ravel(), zz.ravel()], np.tile([-1.0, 0.0, 0.0], (m, 1)))
+    along_y = (np.c_[yy.ravel(), np.full(m, -1.0), zz.ravel()], np.tile([0.0, 1.0, 0.0], (m, 1)))
+    graze = (np.c_[np.full(m, -1.0), yy.ravel(), np.full(m, 1e-9)], np.tile([1.0, 0.0, -1e-9], (m, 1)))
+    total_hits = 0
+    for o, d in (down, tiny, along_x, back_x, along_y, graze):
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        hb = raycast(binary, o, d)
+        hw = raycast(wide, o, d)
+        np.testing.assert_array_equal(hw.hit, hb.hit)
+        np.testing.assert_array_equal(hw.face, hb.face)
+        np.testing.assert_allclose(hw.t[hw.hit], hb.t[hb.hit], rtol=0, atol=1e-6)
+        total_hits += int(hw.hit.sum())
+    # the box's faces (triangle leaves) and the plane (tiles) were both hit
+    assert total_hits > 3000
+    assert (raycast(wide, *along_x).face >= 0).sum() > 100
+
+
 def test_wide_layout_of_a_tree_that_is_one_leaf_and_a_bad_layout():
     # A tetrahedron is one triangle leaf: the wide root holds that one leaf.
     v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])

@@ -1,14 +1,15 @@
 """Closest-hit traversal of the 4-wide RBVH (layout: :mod:`._rbvh_wide_build_kernels`).
 
 Inner nodes as in the exact wide BVH (:mod:`._wide_kernels`): the four child
-boxes of a node are met in one loop over the SoA rows, near and far planes picked
-once per ray from the direction's signs, widened by :data:`ROBUST`;
-the children the ray enters go on the stack sorted by entry distance, nearest on
-top, and an entry farther than the best hit so far is dropped when popped.
+boxes of a node are met at once in float32 SIMD lanes (:func:`..kernels.simd.slab4`,
+the conservative test: rounding never drops a box the ray touches), near and far
+planes picked once per ray from the direction's signs; the children the ray
+enters go on the stack sorted by entry distance, nearest on top, and an entry
+farther than the best hit so far (rounded up) is dropped when popped.
 
 Leaves go on the same stack as ``-1 - (WIDTH node + slot)``, so a leaf is opened in
-order of its box's entry distance like any child, and its entry distance (kept
-on the stack) picks the mip level of a tile as the binary kernel does. Leaf
+order of its box's entry distance like any child; a tile's mip level is picked
+from the float64 entry distance into its box, as the binary kernel does. Leaf
 tests are the binary kernel's: the height-field search of
 :func:`._rbvh_kernels.tile_hit` and the two-sided Möller–Trumbore test of
 :func:`._bvh_kernels.intersect_triangle`, so both layouts find the same hits.
@@ -27,11 +28,12 @@ from ..kernels.tiles import tile_bounds, tile_count
 from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
 from ._rbvh_wide_build_kernels import WIDTH
 from ._rbvh_kernels import tile_hit
-from ._wide_kernels import _inv, slab_origins
+from ..kernels.simd import slab4
+from ._wide_kernels import D_FLUSH, _cull, _f32, _inv, slab_origins, slab_setup32
 
-#: far-plane widening of the float64 box test: covers the rounding of (plane - o) / d
-#: (the exact BVH's float32 test widens by its own ROBUST32)
-ROBUST = 1.0 + 2.0 ** -48
+# slab4 tests exactly four boxes a node (<4 x float>)
+if WIDTH != 4:  # pragma: no cover - a guard for whoever changes WIDTH
+    raise ImportError(f"the 4-wide RBVH kernels need WIDTH == 4, got {WIDTH}")
 
 #: rays per parallel work item of the batch driver
 RAY_CHUNK = 64
@@ -44,51 +46,67 @@ def stack_size(depth: int) -> int:
 
 
 @njit(cache=True, inline="always")
+def _leaf_entry(box, node, c, rows, org, inv, t_min):
+    """Float64 entry distance of the ray into box ``c`` of ``node`` (its near planes only).
+
+    Picks a tile's mip level: the float32 lanes of :func:`.slab4` order and cull the
+    boxes, but rounded entries would move the level's thresholds, and both layouts
+    choose the same level from the same float64 distance.
+    """
+    nxr, nyr, nzr = rows
+    onx, ony, onz = org
+    ix, iy, iz = inv
+    return max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
+               max((box[node, nzr + c] - onz) * iz, t_min))
+
+
+@njit(cache=True, inline="always")
 def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
                           atlas_depth, atlas_normal, ox, oy, oz, dx, dy, dz, t_min, t_max,
-                          st_node, st_t, lane_t, fp0, spread, n_levels):
-    """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) and ``lane_t`` (WIDTH,) float64.
+                          st_node, st_t, lane_b, fp0, spread, n_levels):
+    """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) float64 and
+    ``lane_b`` (WIDTH,) float32.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.rbvh_wide.WideRBVH.nodes`). Returns ``(t, nx, ny, nz, face, tile, a, b)``
     as :func:`._bvh_kernels.closest_hit`.
     """
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
-    # Offsets of the near and far box rows per axis (row r of a node starts at r * WIDTH).
-    nxr, fxr = (0, 3 * WIDTH) if ix >= 0.0 else (3 * WIDTH, 0)
-    nyr, fyr = (WIDTH, 4 * WIDTH) if iy >= 0.0 else (4 * WIDTH, WIDTH)
-    nzr, fzr = (2 * WIDTH, 5 * WIDTH) if iz >= 0.0 else (5 * WIDTH, 2 * WIDTH)
-    onx, ofx = slab_origins(ox, dx)
-    ony, ofy = slab_origins(oy, dy)
-    onz, ofz = slab_origins(oz, dz)
+    # The box test is the exact wide BVH's conservative float32 one (see
+    # ._wide_kernels): tiny direction components flushed to zero for it alone (the
+    # leaf tests keep the ray), origins rounded towards safety, far planes widened.
+    bdx = 0.0 if abs(dx) < D_FLUSH else dx
+    bdy = 0.0 if abs(dy) < D_FLUSH else dy
+    bdz = 0.0 if abs(dz) < D_FLUSH else dz
+    rows, org, inv = slab_setup32(ox, oy, oz, bdx, bdy, bdz)
+    t_lo = _f32(t_min, False)
+    # The float64 near planes of the mip level's entry distance (_leaf_entry).
+    rows64 = (0 if ix >= 0.0 else 12, 4 if iy >= 0.0 else 16, 8 if iz >= 0.0 else 20)
+    org64 = (slab_origins(ox, dx)[0], slab_origins(oy, dy)[0], slab_origins(oz, dz)[0])
+    inv64 = (ix, iy, iz)
     n_tiles = tile_rect.shape[0] // n_levels
     best = t_max
+    hi = _cull(best)
     face = -1
     best_k = -1
     tile = -1
     ha = hb = 0.0
     sp = 1
     st_node[0] = 0
-    st_t[0] = t_min
+    st_t[0] = t_lo
     while sp > 0:
         sp -= 1
-        t_entry = st_t[sp]
-        if t_entry > best:
+        if st_t[sp] > hi:
             continue
         entry = st_node[sp]
         if entry >= 0:
             node = entry
+            mask = slab4(box, node, rows, org, inv, t_lo, hi, lane_b)
             sp0 = sp
             for c in range(WIDTH):
-                tn = max(max((box[node, nxr + c] - onx) * ix, (box[node, nyr + c] - ony) * iy),
-                         max((box[node, nzr + c] - onz) * iz, t_min))
-                tf = min(min((box[node, fxr + c] - ofx) * ix, (box[node, fyr + c] - ofy) * iy),
-                         (box[node, fzr + c] - ofz) * iz) * ROBUST
-                lane_t[c] = tn if tn <= min(tf, best) else math.inf
-            for c in range(WIDTH):
-                t = lane_t[c]
-                if t == math.inf:
+                if not mask & (1 << c):
                     continue
+                t = lane_b[c]
                 code = child[node, 6 * WIDTH + c] if child[node, 7 * WIDTH + c] == 0 else -1 - (WIDTH * node + c)
                 # Insert keeping entries sp0..sp in decreasing distance: nearest on top.
                 j = sp
@@ -112,10 +130,12 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj
         elif count == TILE_LEAF:
             k = first
             if n_levels > 1:
+                t_entry = _leaf_entry(box, node, c, rows64, org64, inv64, t_min)
                 k = mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles)
             t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
             if t < best:
                 best, face, best_k, tile, ha, hb = t, -1, -1, k, s, u
+        hi = _cull(best)
     if face < 0 and tile < 0:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     nx, ny, nz = hit_normal(faces, vnormals, tile_rect, atlas_normal, best_k, tile, ha, hb)
@@ -133,15 +153,15 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, 
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for ck in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
         # Borrowed views: owned arrays passed per ray cost atomic reference counts (kernels.borrow).
         bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
             (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b = borrowed(scratch)
         for r in range(ck * RAY_CHUNK, min(n, (ck + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
                 bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, origins[r, 0], origins[r, 1], origins[r, 2],
-                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_t, fp0, spread, n_levels)
+                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, fp0, spread, n_levels)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
             out_face[r], out_tile[r] = f, tl
@@ -160,17 +180,17 @@ def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_pro
     fp0 = 0.0 if params[12] != 0.0 else pixel
     spread = pixel if params[12] != 0.0 else 0.0
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH))
+        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
         bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
             (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
-        st_node, st_t, lane_t = borrowed(scratch)
+        st_node, st_t, lane_b = borrowed(scratch)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
         for py in range(y0, y1):
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
                     bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
-                    st_node, st_t, lane_t, fp0, spread, n_levels)
+                    st_node, st_t, lane_b, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
                 out_face[py, px], out_tile[py, px] = f, tl

@@ -121,6 +121,33 @@ def slab_origins32(o, d):
     return near, far
 
 
+# A plain call, once per ray: inlined, its nested tuples broke Numba's array analysis
+# of the parallel (prange) drivers that inline the closest-hit kernels.
+@njit(cache=True)
+def slab_setup32(ox, oy, oz, dx, dy, dz):
+    """A ray's ``(rows, org, inv)`` for :func:`..kernels.simd.slab4` on 4-wide SoA nodes
+    (box row ``r`` at ``4 r``), the conservative float32 test of the module docstring.
+
+    ``d`` must have its components under :data:`D_FLUSH` flushed to zero (a float32
+    inverse of them would overflow).
+    """
+    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
+    # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
+    nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
+    nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
+    nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
+    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
+    onx, ofx = slab_origins32(ox, dx)
+    ony, ofy = slab_origins32(oy, dy)
+    onz, ofz = slab_origins32(oz, dz)
+    org = (onx, ony, onz, ofx, ofy, ofz)
+    # Far planes scaled by ROBUST32, so that the float32 rounding of 1 / d, of the
+    # subtraction and of the product never puts the exit before the entry (Ize 2013).
+    inv = (np.float32(ix), np.float32(iy), np.float32(iz),
+           np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
+    return rows, org, inv
+
+
 @njit(cache=True, inline="always")
 def _cull(best):
     """Float32 bound of the entry distances still worth visiting when the best hit is at ``best``."""
@@ -164,20 +191,7 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
         dy = 0.0
     if abs(dz) < D_FLUSH:
         dz = 0.0
-    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
-    # Near / far rows of the boxes per axis (offsets into a node), from the direction's signs.
-    nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
-    nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
-    nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
-    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
-    onx, ofx = slab_origins32(ox, dx)
-    ony, ofy = slab_origins32(oy, dy)
-    onz, ofz = slab_origins32(oz, dz)
-    org = (onx, ony, onz, ofx, ofy, ofz)
-    # Far planes scaled by ROBUST32, so that the float32 rounding of 1 / d, of the
-    # subtraction and of the product never puts the exit before the entry (Ize 2013).
-    inv = (np.float32(ix), np.float32(iy), np.float32(iz),
-           np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
+    rows, org, inv = slab_setup32(ox, oy, oz, dx, dy, dz)
     t_lo = _f32(t_min, False)
     # Watertight test set-up: kz the dominant axis, shear onto it.
     ax_, ay_, az_ = abs(dx), abs(dy), abs(dz)
