@@ -168,6 +168,29 @@ def test_sections_are_recorded_once_and_missing_ones_skipped(tiny_dataset, fake_
     assert render_rows(records) == []
 
 
+def test_dataset_names_a_section_knows_reach_it_and_make_their_own_case(tiny_dataset, fake_section, tmp_path):
+    fake_section.DATASET_NAMES = ("mesh-a", "mesh-b")
+    cfg = BenchConfig(datasets=[tiny_dataset, "mesh-b"], methods=["naive"], sizes=[(8, 8)], views=[(0.0, 0.0)],
+                      repeat=1, warmup=0, dense_tf=False, irt=False, sections=["fakesec"])
+    assert cfg.route_datasets() == []
+    assert cfg.datasets == [tiny_dataset] and cfg.section_datasets == ["mesh-b"]
+    journal = tmp_path / "s.jsonl"
+    records = run_benchmarks(cfg, store=ResultStore(journal))
+    assert fake_section.calls == [(["mesh-b"], 8, 8, 1, 1)]
+    assert any(r["phase"] == "render" and r["dataset"] == tiny_dataset for r in records)
+    # The same section on other data in the same journal runs; on the same data it resumes.
+    other = BenchConfig(datasets=["mesh-a"], methods=["naive"], sizes=[(8, 8)], repeat=1, warmup=0,
+                        irt=False, sections=["fakesec"])
+    assert other.route_datasets() == []
+    run_benchmarks(other, store=ResultStore(journal))
+    assert [c[0] for c in fake_section.calls] == [["mesh-b"], ["mesh-a"]]
+    run_benchmarks(other, store=ResultStore(journal))
+    assert len(fake_section.calls) == 2
+    # A name no one knows is handed back for the caller's error.
+    bad = BenchConfig(datasets=["nosuch", "mesh-a"], sections=["fakesec"])
+    assert bad.route_datasets() == ["nosuch"] and bad.section_datasets == ["mesh-a"]
+
+
 def test_a_failing_section_is_noted_and_the_run_goes_on(tiny_dataset, fake_section):
     def boom(*args, **kwargs):
         raise RuntimeError("kernel exploded")

@@ -56,6 +56,19 @@ def test_bench_rejects_unknown_names(monkeypatch, capsys):
     assert code == 2 and "nope" in err
     code, _, err = run_cli(monkeypatch, capsys, "bench", "--method", "nope")
     assert code == 2 and "nope" in err
+    # With the surface suite, its meshes are names too, and the error lists them.
+    code, _, err = run_cli(monkeypatch, capsys, "bench", "--suite", "surface", "--dataset", "nope")
+    assert code == 2 and "'nope'" in err and "dragons-7m" in err
+
+
+def test_bench_surface_suite_takes_a_mesh_name(monkeypatch):
+    from sparsecast.bench.config import BenchConfig
+    from sparsecast.bench.suites import get_suite
+    from sparsecast.cli.bench import _check_names
+
+    cfg = BenchConfig.from_suite(get_suite("surface"), datasets=["dragon"])
+    _check_names(cfg)
+    assert cfg.datasets == [] and cfg.section_datasets == ["dragon"]
 
 
 def test_bench_help_is_whole_at_80_columns(monkeypatch, capsys):

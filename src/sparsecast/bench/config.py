@@ -52,6 +52,9 @@ class BenchConfig:
     images_dir : path or None
         Where to save our (naive) image and each peer's image of the first view per
         size, for a person to compare.
+    section_datasets : list of str
+        Names given as datasets that a section knows rather than :data:`DATASETS`
+        (the surface section's meshes, e.g. ``dragon``): see :meth:`route_datasets`.
     """
 
     datasets: list[str] = field(default_factory=lambda: [n for n, d in DATASETS.items() if d.default])
@@ -69,6 +72,26 @@ class BenchConfig:
     peer_views: int = 2
     sections: list[str] = field(default_factory=list)
     images_dir: Path | None = None
+    section_datasets: list[str] = field(default_factory=list)
+
+    def route_datasets(self) -> list[str]:
+        """Move the dataset names a section of this run knows (its module's
+        ``DATASET_NAMES``) and :data:`DATASETS` does not to :attr:`section_datasets`.
+
+        Returns the names neither knows, for the caller to report.
+        """
+        known = {n for s in self.sections for n in section_dataset_names(s)}
+        volumes, unknown = [], []
+        for n in self.datasets:
+            if n in DATASETS:
+                volumes.append(n)
+            elif n in known:
+                if n not in self.section_datasets:
+                    self.section_datasets.append(n)
+            else:
+                unknown.append(n)
+        self.datasets = volumes
+        return unknown
 
     @classmethod
     def from_suite(cls, suite: Suite, **overrides: Any) -> "BenchConfig":
@@ -84,3 +107,15 @@ class BenchConfig:
             if value is not None:
                 setattr(cfg, key, value)
         return cfg
+
+
+def section_dataset_names(section: str) -> tuple[str, ...]:
+    """The dataset names ``sparsecast.bench.<section>`` takes (its ``DATASET_NAMES``;
+    none for a section that has no such list or is not there)."""
+    import importlib
+    import importlib.util
+
+    name = f"{__package__}.{section}"
+    if not section.isidentifier() or importlib.util.find_spec(name) is None:
+        return ()
+    return tuple(getattr(importlib.import_module(name), "DATASET_NAMES", ()))

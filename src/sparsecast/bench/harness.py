@@ -29,12 +29,12 @@ from ..transfer import TransferFunction
 from ..volume import Volume
 from .bounds import cell_bound, volume_occupancy
 from .catalog import DATASETS, dense_tf
-from .config import BenchConfig
+from .config import BenchConfig, section_dataset_names
 from .images import image_name, psnr, save_png
 from .irt import irt_build_times
 from .machine import machine_info
 from .peers import PeerUnavailable, load_peer
-from .plan import CasePlan, Key, build_key, classify_key, dataset_key, render_key, section_key
+from .plan import CasePlan, Key, build_key, classify_key, dataset_key, render_key
 from .progress import Progress, ResultStore
 from .ratios import add_ratios
 from .suites import view_name
@@ -135,6 +135,7 @@ class _Run:
             methods=[spec for spec, _, _ in self.methods], peers=[name for name, _ in self.peers],
             sections=sections, sizes=list(config.sizes), views=list(config.views),
             dense_views=config.dense_views, peer_views=config.peer_views,
+            section_data=self._section_data(sections),
         )
         keys = self.plan.keys()
         self.progress.total = len(keys)
@@ -170,6 +171,16 @@ class _Run:
                 self.skip(name, "peer", f"failed to load: {type(exc).__name__}: {exc}")
         return out
 
+    def _section_data(self, sections: list[str]) -> dict[str, tuple[str, ...]]:
+        """The ``--dataset`` names each section knows (``BenchConfig.route_datasets``)."""
+        out = {}
+        for name in sections:
+            own = set(section_dataset_names(name)) if name != "irt" else set()
+            names = tuple(n for n in self.cfg.section_datasets if n in own)
+            if names:
+                out[name] = names
+        return out
+
     def _available_sections(self) -> list[str]:
         out = []
         for name in self.cfg.sections:
@@ -191,7 +202,7 @@ class _Run:
                 continue
             self.dataset(ds)
         for name in plan.sections:
-            if not self.done(section_key(name)):
+            if not self.done(self.plan.section_key(name)):
                 self.section(name)
 
     def dataset(self, ds_name: str) -> None:
@@ -237,12 +248,14 @@ class _Run:
             else:
                 module = importlib.import_module(f"{__package__}.{name}")
                 w, h = cfg.sizes[0]
-                module.run(None, width=w, height=h, repeat=cfg.repeat, warmup=max(cfg.warmup, 1), record=record)
+                # The --dataset names this section knows, else its defaults.
+                names = list(self.plan.section_data.get(name, ())) or None
+                module.run(names, width=w, height=h, repeat=cfg.repeat, warmup=max(cfg.warmup, 1), record=record)
         except Exception as exc:  # one broken section must not end a long run
             last = traceback.extract_tb(exc.__traceback__)[-1]
             self.skip(name, "section", f"failed: {type(exc).__name__}: {exc} ({Path(last.filename).name}:{last.lineno})")
             return
-        self.store.add_many(recs + [{**_BLANK, **section_key(name), "machine": self.machine}])
+        self.store.add_many(recs + [{**_BLANK, **self.plan.section_key(name), "machine": self.machine}])
         self.progress.advance()
 
 

@@ -11,7 +11,8 @@ peer view; after every dataset, one ``section_done`` per section.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from .suites import view_name
@@ -43,9 +44,16 @@ def render_key(ds: str, tf: str, method: str, size: tuple[int, int], view: tuple
     return dict(dataset=ds, tf=tf, method=method, width=w, height=h, view=view_name(view), phase="render")
 
 
-def section_key(name: str) -> Key:
-    """The bookkeeping record that says section ``name`` finished (its records are journaled at once)."""
-    return dict(method=name, phase="section_done")
+def section_key(name: str, datasets: Sequence[str] = ()) -> Key:
+    """The bookkeeping record that says section ``name`` finished (its records are journaled at once).
+
+    ``datasets``: the names the section was given (none: its defaults), so that a run
+    of the same section on other data in the same folder is a new case, not a resume.
+    """
+    key: Key = dict(method=name, phase="section_done")
+    if datasets:
+        key["dataset"] = ",".join(datasets)
+    return key
 
 
 @dataclass(frozen=True)
@@ -66,6 +74,8 @@ class CasePlan:
         The dense TF renders only the first this many views (None: all).
     peer_views : int
         Peers render the first this many views.
+    section_data : dict of str to tuple of str
+        The dataset names each section is given (a section not in it: its defaults).
     """
 
     datasets: list[str]
@@ -77,6 +87,11 @@ class CasePlan:
     views: list[tuple[float, float]]
     dense_views: int | None
     peer_views: int
+    section_data: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def section_key(self, name: str) -> Key:
+        """The marker key of section ``name`` with the datasets it is given."""
+        return section_key(name, self.section_data.get(name, ()))
 
     def views_for(self, tf: str, peer: bool = False) -> list[tuple[float, float]]:
         """The views rendered for TF ``tf`` (by our methods, or by the peers)."""
@@ -108,4 +123,4 @@ class CasePlan:
 
     def keys(self) -> list[Key]:
         """Every case of the run, in run order."""
-        return [k for ds in self.datasets for k in self.dataset_keys(ds)] + [section_key(s) for s in self.sections]
+        return [k for ds in self.datasets for k in self.dataset_keys(ds)] + [self.section_key(s) for s in self.sections]

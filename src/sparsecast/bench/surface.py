@@ -102,6 +102,8 @@ MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "dragons-7m": (lambda: side_by_side(_shared("stanford_dragon_871k.ply")(), 4, 2), True),
 }
 DEFAULT_DATASETS = ("bunny", "beast", "bunny-1m")
+#: the names ``sparsecast bench --suite surface --dataset NAME`` takes
+DATASET_NAMES = tuple(MESHES)
 
 
 def _diffuse_rays(hits, cam: Camera, width: int, height: int, eps: float, seed: int = 7):
