@@ -185,3 +185,29 @@ def test_sweep_plot_from_records(tmp_path):
     paths = write_plots(recs, tmp_path)
     assert [p.name for p in paths] == ["sweep_fig5b-256.png"]
     assert paths[0].stat().st_size > 1000
+
+
+def test_surface_table_ratios_per_cpu_second():
+    from rich.console import Console
+
+    from sparsecast.bench.report import format_surface
+
+    def rec(method, phase, **kw):
+        return {"section": "surface", "dataset": "m", "method": method, "phase": phase, **kw}
+
+    recs = [rec("mesh", "load", triangles=1234),
+            rec("bvh", "build", ms=500.0), rec("embree", "build", ms=250.0),
+            rec("rbvh-Q2", "memory", mem_ratio=0.125),
+            rec("bvh", "render", ms=10.0, mrays_cpu_s=4.0), rec("rbvh-Q2", "render", ms=8.0, mrays_cpu_s=6.0, psnr=37.5),
+            rec("embree", "render", ms=5.0, mrays_cpu_s=8.0),
+            rec("bvh", "render_diffuse", mrays_cpu_s=1.0), rec("embree", "render_diffuse", mrays_cpu_s=4.0)]
+    assert format_surface([r for r in recs if r["phase"] != "render"]) is None
+    console = Console(width=300, record=True)
+    console.print(format_surface(recs))
+    lines = {line.split("│")[3].strip(): [c.strip() for c in line.split("│")[1:-1]]
+             for line in console.export_text().splitlines() if line.count("│") > 10}
+    bvh, rbvh, emb = lines["bvh"], lines["rbvh-Q2"], lines["embree"]
+    assert bvh[1] == "1234" and bvh[3] == "500" and emb[3] == "250"
+    assert (bvh[8], bvh[9], bvh[11]) == ("1.00", "0.50", "0.25")  # x bvh, x embree, diffuse x embree
+    assert (rbvh[8], rbvh[9], rbvh[12], rbvh[13]) == ("1.50", "0.75", "37.5", "0.125")
+    assert rbvh[11] == ""  # no diffuse record: no ratio made up

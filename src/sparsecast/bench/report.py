@@ -139,6 +139,46 @@ def format_features(records: list[dict[str, Any]]):
     return table
 
 
+def format_surface(records: list[dict[str, Any]]):
+    """The ``surface`` section (:mod:`.surface`) as a table, or None when the run has none:
+    per mesh and method the build, the primary and diffuse rays per CPU-second (all
+    threads: the fair figure beside a peer with its own thread count), their ratios to
+    the exact BVH and to Embree in the same interleaved run, PSNR and memory."""
+    from rich.table import Table
+
+    sec = [r for r in records if r.get("section") == "surface"]
+    prim = {(r["dataset"], r["method"]): r for r in sec if r.get("phase") == "render"}
+    if not prim:
+        return None
+    diff = {(r["dataset"], r["method"]): r for r in sec if r.get("phase") == "render_diffuse"}
+    build = {(r["dataset"], r["method"]): r for r in sec if r.get("phase") == "build"}
+    mem = {(r["dataset"], r["method"]): r for r in sec if r.get("phase") == "memory"}
+    tris = {r["dataset"]: r.get("triangles") for r in sec if r.get("phase") == "load"}
+
+    def ratio(rows, key, ref_method):
+        ref = rows.get((key[0], ref_method))
+        a, b = (rows.get(key) or {}).get("mrays_cpu_s"), (ref or {}).get("mrays_cpu_s")
+        return a / b if a and b else None
+
+    table = Table(title="sparsecast bench: surfaces (interleaved rounds per mesh, per CPU-second)")
+    for col in ("mesh", "triangles", "method", "build ms", "primary ms", "min-max", "cores busy",
+                "M rays / CPU-s", "x bvh", "x embree", "diffuse M rays / CPU-s", "diffuse x embree",
+                "PSNR dB", "memory / bvh"):
+        table.add_column(col, justify="left" if col in ("mesh", "method") else "right")
+    for key, r in prim.items():
+        b = build.get(key) or {}
+        d = diff.get(key) or {}
+        table.add_row(str(key[0]), _fmt(tris.get(key[0]), "d"), str(key[1]), _fmt(b.get("ms"), ".0f"),
+                      _fmt(r.get("ms"), ".1f"), f"{_fmt(r.get('ms_min'), '.1f')}-{_fmt(r.get('ms_max'), '.1f')}",
+                      _fmt(r.get("cores_busy"), ".2f"), _fmt(r.get("mrays_cpu_s"), ".2f"),
+                      _fmt(ratio(prim, key, "bvh"), ".2f"), _fmt(ratio(prim, key, "embree"), ".2f"),
+                      _fmt(d.get("mrays_cpu_s"), ".2f"), _fmt(ratio(diff, key, "embree"), ".2f"),
+                      _fmt(r.get("psnr"), ".1f"), _fmt((mem.get(key) or {}).get("mem_ratio"), ".3f"))
+    table.caption = ("build: median after a warm-up (Embree's includes its first cast); ratios of rays per "
+                     "CPU-second within one run; PSNR of the shaded image against the exact BVH's")
+    return table
+
+
 def format_scale(records: list[dict[str, Any]]):
     """The ``scale`` section (:mod:`.scale`) as a table, or None when the run has none: per
     size and source kind, opening, statistics, time to first image and peak RSS, then one

@@ -53,7 +53,7 @@ def bench(
     from ..bench.config import BenchConfig
     from ..bench.harness import finished_records
     from ..bench.progress import Progress, ResultStore
-    from ..bench.report import format_features, format_scale, format_summary
+    from ..bench.report import format_features, format_scale, format_summary, format_surface
     from ..bench.suites import get_suite, orbit_views
 
     plan = get_suite(suite or "quick")
@@ -99,8 +99,10 @@ def bench(
     # A table this wide is unreadable folded at 80 columns when piped to a file.
     wide = out if out.is_terminal else plain_console(200)
     # A suite run has hundreds of records: its console shows the headline, the report the rest.
-    wide.print(format_summary(records) if suite else format_table(records))
-    for section_table in (format_features(records), format_scale(records)):
+    headline = format_summary(records) if suite else format_table(records)
+    if headline.row_count or not suite:  # a sections-only suite (surface) has no volume rows
+        wide.print(headline)
+    for section_table in (format_features(records), format_surface(records), format_scale(records)):
         if section_table is not None:
             wide.print(section_table)
     write_json(records, json_path)
