@@ -112,8 +112,8 @@ def test_hot_kernels_count_no_references(monkeypatch):
     cam = sc.Camera.orbit(vol, 30, 20)
     sc.render(vol, tf, cam, 8, 8, index="kdtree-deep", mode="iso", iso=0.5)
     sc.render(vol, tf, cam, 8, 8, index="kdtree-deep")
-    # iso._refine is an overload; on this trilinear dense volume it calls _refine_cells.
-    for disp in (driver._dvr_tile_uncached, iso.iso_interval, iso._refine_cells, march_interval):
+    # iso._refine is an overload; on this trilinear dense volume it calls _refine_cubic.
+    for disp in (driver._dvr_tile_uncached, iso.iso_interval, iso._refine_cubic, march_interval):
         assert disp.signatures, disp.py_func.__name__
         assert _counting_calls(disp, disp.signatures[0]) == [], disp.py_func.__name__
 

@@ -28,8 +28,8 @@ from numba.extending import overload
 from .borrow import NO_REFCOUNT
 from .layout import layout_of
 from .ray import lattice_range
-from .sample import cell_of, cell_values, lerp8
-from .sampler import Trilinear, sample, sample_gradient
+from .sample import cell_of, lerp8
+from .sampler import Trilinear, cell_corners, sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
 
 __all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
@@ -89,18 +89,17 @@ def _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, t):
 def _refine(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):  # pragma: no cover
     """``t`` in ``[ta, tb]`` where the field crosses ``v`` (``ga``, ``gb``: field minus ``v`` at the ends).
 
-    :data:`ISO_STEPS` bisection steps on the sampled field, then one secant step;
-    an overload picks the loop by sampler and layout (:func:`_refine_cells` for
-    trilinear dense volumes, :func:`_refine_sampled` otherwise), the floats are
-    the same.
+    :data:`ISO_STEPS` bisection steps on the field, then one secant step; an
+    overload picks the loop by sampler (:func:`_refine_cubic` for trilinear
+    volumes of either layout, :func:`_refine_sampled` for the others).
     """
     raise NotImplementedError("_refine is only callable from jitted code")
 
 
 @overload(_refine)
 def _refine_ol(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
-    if getattr(sampler, "instance_class", None) is Trilinear and layout_of(flat) == "dense":
-        return lambda sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v: _refine_cells(
+    if getattr(sampler, "instance_class", None) is Trilinear and layout_of(flat) in ("dense", "bricked"):
+        return lambda sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v: _refine_cubic(
             flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v)
     return lambda sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v: _refine_sampled(
         sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v)
@@ -132,34 +131,104 @@ def _refine_sampled(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, g
     return _secant(ta, tb, ga, gb)
 
 
-@njit(cache=True, **NO_REFCOUNT)
-def _refine_cells(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
-    """:func:`_refine_sampled` for a trilinear dense volume, reading a cell's corners once.
+@njit(cache=True, inline="always")
+def cell_cubic(v000, v001, v010, v011, v100, v101, v110, v111, u, w, h, du, dw, dh):
+    """The trilinear field of one cell along a line, as a cubic ``c0 + c1 s + c2 s^2 + c3 s^3``.
 
-    The bracket is one lattice step long and shrinks, so most midpoints fall in the
-    cell of the one before; their eight corner loads, on the bisection's serial
-    dependency chain, are the step's main cost. :func:`.sample.cell_values` and
-    :func:`.sample.lerp8` are what :func:`.sample.trilinear` computes, so each
-    step's value is the same float.
+    ``v_kji`` are the cell's corners (:func:`.sample.lerp8`'s order), ``(u, w, h)``
+    the fractions of the line's point at ``s = 0`` and ``(du, dw, dh)`` their rates
+    per unit ``s``. The field is ``A + B u + C w + D h + E uw + F uh + G wh + H uwh``;
+    ``c1`` is its gradient along the line, ``c2`` the mixed second derivatives, ``c3``
+    ``H du dw dh``. ``c0`` is :func:`.sample.lerp8` itself, so at ``s = 0`` the cubic
+    is the sampled value bit for bit; elsewhere it agrees to rounding.
+    """
+    a = float(v000)
+    b = float(v001) - a
+    c = float(v010) - a
+    d = float(v100) - a
+    e = float(v011) - float(v010) - b
+    f = float(v101) - float(v100) - b
+    g = float(v110) - float(v100) - c
+    hh = float(v111) - float(v110) - float(v101) + float(v100) - e
+    fu = b + e * w + f * h + hh * (w * h)
+    fw = c + e * u + g * h + hh * (u * h)
+    fh = d + f * u + g * w + hh * (u * w)
+    fuw = e + hh * h
+    fuh = f + hh * w
+    fwh = g + hh * u
+    c0 = float(lerp8(v000, v001, v010, v011, v100, v101, v110, v111, u, w, h))
+    c1 = fu * du + fw * dw + fh * dh
+    c2 = fuw * (du * dw) + fuh * (du * dh) + fwh * (dw * dh)
+    c3 = hh * (du * dw * dh)
+    return c0, c1, c2, c3
+
+
+@njit(cache=True, inline="always")
+def _cell_span(o, d, inv, i0, n):
+    """The ``t`` range in which the ray's coordinate ``o + t d`` stays in cell ``i0`` of an
+    axis of ``n`` voxels (the end cells reach on, as :func:`.sample.cell_of` clamps them)."""
+    if d == 0.0:
+        return -np.inf, np.inf
+    lo = float(i0) if i0 > 0 else -np.inf
+    hi = float(i0 + 1) if i0 < n - 2 else np.inf
+    t0 = (lo - o) * inv
+    t1 = (hi - o) * inv
+    return min(t0, t1), max(t0, t1)
+
+
+@njit(cache=True, **NO_REFCOUNT)
+def _refine_cubic(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, ta, tb, ga, gb, v):
+    """:func:`_refine` for trilinear volumes (dense or bricked), on each cell's cubic.
+
+    Inside one cell the trilinear field along the ray is a cubic in ``t``
+    (:func:`cell_cubic`). A midpoint in a new cell loads its corners, the cubic and
+    the ``t`` span the ray spends in the cell; a midpoint inside the span (most
+    steps: the bracket halves, the cell stays) is one Horner evaluation, so a step's
+    serial chain (midpoint, value, halving) holds three multiply-adds instead of the
+    point, its cell and the seven interpolations of a sample. Values differ from
+    :func:`_refine_sampled`'s by rounding (a cell's first midpoint is the same
+    float); every renderer calls this one function and both layouts read the same
+    corners (:func:`.sampler.cell_corners`), so images still agree bit for bit
+    across indices and layouts.
     """
     above = ga >= 0.0
-    ci = -1
-    cj = -1
-    ck = -1
-    # Typed as cell_values types them (float32 voxels stay float32, as in trilinear);
-    # 0.0 would make the corners float64 and change the floats. ci = -1 loads them.
-    v000 = v001 = v010 = v011 = v100 = v101 = v110 = v111 = float(flat[0])
+    ix = 1.0 / dx if dx != 0.0 else 0.0
+    iy = 1.0 / dy if dy != 0.0 else 0.0
+    iz = 1.0 / dz if dz != 0.0 else 0.0
+    t_in = np.inf  # the current cell's span: empty until the first midpoint loads one
+    t_out = -np.inf
+    tr = 0.0
+    c0 = c1 = c2 = c3 = 0.0
+    # The bracket is [ta, ta + w]. Which half holds the crossing is a coin toss, so a
+    # branch on it would mispredict every other step of a serial chain: the halves are
+    # chosen by arithmetic instead (m * p + (1 - m) * q is p or q exactly for m in {0, 1};
+    # ta + w is the float tm was).
+    w = tb - ta
     for _ in range(ISO_STEPS):
-        tm = 0.5 * (ta + tb)
-        i0, i1, fx, j0, j1, fy, k0, k1, fz = cell_of(ox + tm * dx, oy + tm * dy, oz + tm * dz, nx, ny, nz)
-        if i0 != ci or j0 != cj or k0 != ck:
-            v000, v001, v010, v011, v100, v101, v110, v111 = cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1)
-            ci = i0
-            cj = j0
-            ck = k0
-        gm = lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz) - v
-        ta, tb, ga, gb = _halve(ta, tb, ga, gb, tm, gm, above)
-    return _secant(ta, tb, ga, gb)
+        w *= 0.5
+        tm = ta + w
+        if not (t_in <= tm <= t_out):
+            x = ox + tm * dx
+            y = oy + tm * dy
+            z = oz + tm * dz
+            i0, _, _, j0, _, _, k0, _, _ = cell_of(x, y, z, nx, ny, nz)
+            v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz = cell_corners(flat, nx, ny, nz, x, y, z)
+            c0, c1, c2, c3 = cell_cubic(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz, dx, dy, dz)
+            c0 -= v  # the cubic of the field minus v: one subtraction less on the chain
+            tr = tm
+            ax0, ax1 = _cell_span(ox, dx, ix, i0, nx)
+            ay0, ay1 = _cell_span(oy, dy, iy, j0, ny)
+            az0, az1 = _cell_span(oz, dz, iz, k0, nz)
+            t_in = max(ax0, ay0, az0)
+            t_out = min(ax1, ay1, az1)
+        s = tm - tr
+        gm = c0 + s * (c1 + s * (c2 + s * c3))
+        m = 1.0 if (gm >= 0.0) == above else 0.0  # 1: the crossing is in [tm, ta + 2w]
+        n = 1.0 - m
+        ta += m * w  # ta + w is tm, ta + 0.0 is ta: exact
+        ga = m * gm + n * ga
+        gb = m * gb + n * gm
+    return _secant(ta, ta + w, ga, gb)
 
 
 @njit(cache=True, **NO_REFCOUNT)

@@ -45,7 +45,7 @@ from .sample import clamp_point, corners, gradient, trilinear
 from .shade import tf_alpha, tf_color
 
 __all__ = ["Trilinear", "Nearest", "SmoothLabels", "SAMPLERS", "sampler_for", "sample", "sample_gradient",
-           "sample_alpha", "sample_color", "sample_normal", "nearest", "label_mix"]
+           "cell_corners", "sample_alpha", "sample_color", "sample_normal", "nearest", "label_mix"]
 
 
 class Trilinear(NamedTuple):
@@ -229,11 +229,15 @@ def _sample_normal(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     return None
 
 
-def _cell_corners(flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by overloads in jitted code
-    raise NotImplementedError("_cell_corners is only callable from jitted code")
+def cell_corners(flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by overloads in jitted code
+    """The eight corner values of the trilinear cell of ``(x, y, z)`` and its fractions,
+    ``(v000, ..., v111, fx, fy, fz)`` as :func:`.sample.corners` returns them, from
+    either layout (a dense volume's 1-D view or a bricked one): the same cell and the
+    same values for the same point."""
+    raise NotImplementedError("cell_corners is only callable from jitted code")
 
 
-@overload(_cell_corners, inline="always")
+@overload(cell_corners, inline="always")
 def _cell_corners_ol(flat, nx, ny, nz, x, y, z):
     layout = layout_of(flat)
     if layout == "dense":
@@ -251,7 +255,7 @@ def _cell_corners_ol(flat, nx, ny, nz, x, y, z):
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _smooth_rgba(flat, nx, ny, nz, table, v_lo, scale, x, y, z):
     """:func:`label_mix` of the cell of ``(x, y, z)`` (either layout)."""
-    v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz = _cell_corners(flat, nx, ny, nz, x, y, z)
+    v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz = cell_corners(flat, nx, ny, nz, x, y, z)
     return label_mix(table, v_lo, scale, v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
 
 
