@@ -70,8 +70,7 @@ def cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1):
     """The eight corner values ``v_kji`` of a cell of :func:`cell_of`, as float64.
 
     ``trilinear(...) == lerp8(*cell_values(...), fx, fy, fz)`` bit for bit: a
-    caller that samples one cell several times (the isosurface bisection) reads
-    its corners once.
+    caller that samples one cell several times can read its corners once.
     """
     row0 = k0 * ny
     row1 = k1 * ny
