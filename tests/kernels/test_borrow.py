@@ -112,10 +112,14 @@ def test_hot_kernels_count_no_references(monkeypatch):
     cam = sc.Camera.orbit(vol, 30, 20)
     sc.render(vol, tf, cam, 8, 8, index="kdtree-deep", mode="iso", iso=0.5)
     sc.render(vol, tf, cam, 8, 8, index="kdtree-deep")
-    # iso._refine is an overload; on this trilinear dense volume it calls _refine_cubic.
+    # iso._refine is an overload; on trilinear volumes it calls _refine_cubic, one
+    # specialisation per voxel layout: the bricked one reads its corners from the pages.
+    sc.render(sc.BrickedVolume(vol.data), tf, cam, 8, 8, index="kdtree-deep", mode="iso", iso=0.5)
+    assert len(iso._refine_cubic.signatures) >= 2, "no bricked specialisation of the iso refine"
     for disp in (driver._dvr_tile_uncached, iso.iso_interval, iso._refine_cubic, march_interval):
         assert disp.signatures, disp.py_func.__name__
-        assert _counting_calls(disp, disp.signatures[0]) == [], disp.py_func.__name__
+        for sig in disp.signatures:
+            assert _counting_calls(disp, sig) == [], (disp.py_func.__name__, sig)
 
     # The control: the same per-interval kernel compiled with the runtime counts.
     assert _counting_calls(iso.iso_interval, iso.iso_interval.signatures[0], {"_nrt": True})
