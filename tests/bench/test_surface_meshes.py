@@ -33,5 +33,5 @@ def test_side_by_side_copies_are_disjoint_turned_and_complete():
 
 
 def test_large_scenes_are_registered_and_need_the_shared_data():
-    for name in ("dragon", "dragon-3.5m", "dragons-7m"):
+    for name in ("turbine", "dragon", "dragon-3.5m", "dragons-7m"):
         assert MESHES[name][1] is True

@@ -2,7 +2,8 @@
 
 Per mesh (the shared ``bunny`` and ``beast``, and ``bunny-1m``: the bunny
 midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
-in when the shared data is absent; opt-in: ``bunny-4m``, ``sphere-1m``, and the
+in when the shared data is absent; opt-in: ``turbine`` (the shared 199 k turbine
+blade scan), ``bunny-4m``, ``sphere-1m``, and the
 RBVH's own regime of 4-10 M triangles, built in memory from the shared dragon:
 ``dragon`` (871 k), ``dragon-3.5m`` (subdivided once: the same surface, four times
 the triangles) and ``dragons-7m`` (eight dragons side by side, each turned about
@@ -97,6 +98,7 @@ MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny-1m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 2), True),
     "bunny-4m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 3), True),
     "sphere-1m": (lambda: icosphere(8), False),
+    "turbine": (_shared("turbine_blade_199k.ply"), True),
     "dragon": (_shared("stanford_dragon_871k.ply"), True),
     "dragon-3.5m": (lambda: subdivide(_shared("stanford_dragon_871k.ply")(), 1), True),
     "dragons-7m": (lambda: side_by_side(_shared("stanford_dragon_871k.ply")(), 4, 2), True),
