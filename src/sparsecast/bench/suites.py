@@ -196,7 +196,7 @@ SUITES: dict[str, Suite] = {
         Suite("bih", "the BIH section only (element rendering, single-sample BIH-DVR)", short="BIH section",
               datasets=(), irt=False, sections=("bih",)),
         Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
-              datasets=(), irt=False, sections=("surface",)),
+              duration="2 min", datasets=(), irt=False, sections=("surface",)),
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, on the shared "
               "CT/MR volumes (bench.features)", short="features section", duration="4 min", datasets=(), irt=False,
               sections=("features",)),
