@@ -191,6 +191,20 @@ def test_dataset_names_a_section_knows_reach_it_and_make_their_own_case(tiny_dat
     assert bad.route_datasets() == ["nosuch"] and bad.section_datasets == ["mesh-a"]
 
 
+def test_run_benchmarks_routes_section_names_itself(tiny_dataset, fake_section):
+    """A config built in Python (no CLI) may name a section's dataset or an unknown one:
+    the first reaches the section, the second is a skip note, and the caller's config
+    is left as it was."""
+    fake_section.DATASET_NAMES = ("mesh-a",)
+    cfg = BenchConfig(datasets=["mesh-a", "nosuch"], methods=["naive"], sizes=[(8, 8)], repeat=1, warmup=0,
+                      irt=False, sections=["fakesec"])
+    records = run_benchmarks(cfg)
+    assert fake_section.calls == [(["mesh-a"], 8, 8, 1, 1)]
+    (note,) = [r for r in records if r["phase"] == "skipped"]
+    assert note["method"] == "nosuch" and "unknown dataset" in note["reason"]
+    assert cfg.datasets == ["mesh-a", "nosuch"] and cfg.section_datasets == []
+
+
 def test_a_failing_section_is_noted_and_the_run_goes_on(tiny_dataset, fake_section):
     def boom(*args, **kwargs):
         raise RuntimeError("kernel exploded")

@@ -12,6 +12,7 @@ the :class:`~.plan.CasePlan`; the ratios between records are :func:`~.ratios.add
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.util
 import time
@@ -113,7 +114,11 @@ class _Run:
 
     def __init__(self, config: BenchConfig, store: ResultStore,
                  progress: Progress | Callable[[str], None] | None) -> None:
-        self.cfg = config
+        # Dataset names a section knows go to it (the CLI routes them too, to fail early);
+        # a copy, so that the caller's config is not changed.
+        self.cfg = dataclasses.replace(config, datasets=list(config.datasets),
+                                       section_datasets=list(config.section_datasets))
+        unknown = self.cfg.route_datasets()
         self.store = store
         self.machine = machine_info()
         if progress is None:
@@ -124,8 +129,10 @@ class _Run:
         self.methods = [(spec, *parse_index_spec(spec)) for spec in config.methods]
         self.peers = self._available_peers()
         sections = self._available_sections()
+        for name in unknown:
+            self.skip(name, "dataset", "unknown dataset: neither a volume of the catalogue nor a name a section knows")
         datasets = []
-        for name in config.datasets:
+        for name in self.cfg.datasets:
             if DATASETS[name].available():
                 datasets.append(name)
             else:
