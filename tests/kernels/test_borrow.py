@@ -114,7 +114,14 @@ def test_hot_kernels_count_no_references(monkeypatch):
     sc.render(vol, tf, cam, 8, 8, index="kdtree-deep")
     # iso._refine is an overload; on trilinear volumes it calls _refine_cubic, one
     # specialisation per voxel layout: the bricked one reads its corners from the pages.
-    sc.render(sc.BrickedVolume(vol.data), tf, cam, 8, 8, index="kdtree-deep", mode="iso", iso=0.5)
+    bricked = sc.BrickedVolume(vol.data)
+    sc.render(bricked, tf, cam, 8, 8, index="kdtree-deep", mode="iso", iso=0.5)
+    # A caller loaded from the disk cache links its own copy and types no callee here:
+    # type both layouts' refine directly, so the check below sees them either way.
+    nz, ny, nx = vol.data.shape
+    bracket = (0.5, 0.5, 0.5, 0.6, 0.0, 0.8, 0.0, 1.0, -0.25, 0.25, 0.5)
+    for data in (np.ascontiguousarray(vol.data).reshape(-1), bricked.voxels()):
+        iso._refine_cubic(data, nx, ny, nz, *bracket)
     assert len(iso._refine_cubic.signatures) >= 2, "no bricked specialisation of the iso refine"
     for disp in (driver._dvr_tile_uncached, iso.iso_interval, iso._refine_cubic, march_interval):
         assert disp.signatures, disp.py_func.__name__
