@@ -11,7 +11,7 @@ import pytest
 from numba import njit, typeof, types
 
 from sparsecast.kernels.march import _shade_sample, march_interval
-from sparsecast.kernels.packet import PACKET, PACKET_BUFFER, sample_packet
+from sparsecast.kernels.packet import PACKET, PACKET_BUFFER, sample_packet, value_packet
 from sparsecast.kernels.ray import lattice_range
 from sparsecast.kernels.sampler import Nearest, Trilinear, sample
 from sparsecast.kernels.shade import tf_alpha, tf_color
@@ -185,3 +185,26 @@ def test_sample_packet_lanes():
     for lane in range(PACKET):
         expect = one(data.reshape(-1), (k + lane) * dt)
         assert tuple(buf[lane:4 * PACKET:PACKET]) == expect
+
+
+@pytest.mark.parametrize("shape", [(6, 7, 8), (5, 4, 1)])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_value_packet_lanes(shape, dtype):
+    """Each lane of value_packet holds sample k + lane's field value, the scalar
+    sampler's float bit for bit (both lane loops: x extent 1 and more)."""
+    rng = np.random.default_rng(3)
+    data = (rng.random(shape) * 200).astype(dtype)
+    nz, ny, nx = shape
+    flat = data.reshape(-1)
+    buf = np.full(PACKET, np.nan)
+    ray = (0.3, 0.5, 0.2, 0.1 if nx > 1 else 0.0, 0.45, 0.71)
+    dt, k = 0.3, 2
+
+    @njit
+    def one(flat, t):
+        return sample(Trilinear(), flat, nx, ny, nz, ray[0] + t * ray[3], ray[1] + t * ray[4], ray[2] + t * ray[5])
+
+    value_packet(Trilinear(), flat, nx, ny, nz, *ray, dt, k, buf)
+    got = [float(v) for v in buf]
+    want = [float(one(flat, (k + lane) * dt)) for lane in range(PACKET)]
+    assert got == want

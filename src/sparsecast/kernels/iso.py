@@ -15,6 +15,12 @@ its indices for a TF that is non-zero only around the isovalues). An interval
 ``k0 <= k <= k1 + 1`` (``k0..k1`` its lattice indices), and testing exactly those
 pairs, each once (``k_next`` is the first pair end not yet tested), finds the
 crossings the naive marcher finds, with the same floats.
+
+Packets. On dense volumes the samples come :data:`.packet.PACKET` at a time
+(:func:`.packet.value_packet`, the scalar sampler's floats lane by lane), and a
+packet none of whose pairs crosses (most of them: one test, :func:`_crossing_in`)
+is passed over at once. Measured (tooth CT, 1024², 2 threads, 2026-12-04, Intel
+Xeon): naive iso frame 318 -> 189-194 ms, k-d tree 62 -> 56-60 ms.
 """
 
 from __future__ import annotations
@@ -27,10 +33,12 @@ from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
 from .layout import layout_of
+from .packet import PACKET, packet_capable, value_packet
 from .ray import lattice_range
 from .sample import cell_of, lerp8
 from .sampler import Trilinear, cell_corners, sample, sample_gradient
 from .shade import SHADING_ENABLED, blinn_phong, tf_alpha, tf_color
+from .vectorize import lane_buffer
 
 __all__ = ["Iso", "IsoDvr", "ISO_STEPS", "MAX_ISOVALUES", "composites_dvr", "iso_interval"]
 
@@ -251,6 +259,47 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
     return r + w * cr, g + w * cg, b + w * cb, a + w, t
 
 
+def _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):  # pragma: no cover
+    """Field values of lattice samples ``k, k + 1, ...`` into ``buf``; returns how many.
+
+    :data:`.packet.PACKET` at once where the sampler and the layout take packets
+    (:func:`.packet.value_packet`), else one; the values are :func:`_at`'s either way.
+    """
+    raise NotImplementedError("_values is only callable from jitted code")
+
+
+@overload(_values, inline="always")
+def _values_ol(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+    if packet_capable(sampler, flat):
+        def packets(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+            value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf)
+            return PACKET
+
+        return packets
+
+    def one(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+        buf[0] = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, k * dt)
+        return 1
+
+    return one
+
+
+@njit(cache=True, inline="always")
+def _crossing_in(values, buf, count, f_prev, has_prev):
+    """Whether a pair of consecutive samples among ``f_prev`` (if ``has_prev``) and
+    ``buf[:count]`` crosses one of ``values``: the pair test of :func:`iso_interval`."""
+    for j in range(values.shape[0]):
+        v = values[j]
+        if has_prev and (f_prev >= v) != (buf[0] >= v):
+            return True
+        below = 0
+        for lane in range(count):
+            below += not buf[lane] >= v  # as the pair test reads it, NaN included
+        if 0 < below < count:
+            return True
+    return False
+
+
 # Not inlined, as :func:`.march.march_interval`: one compiled copy serves every index.
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def iso_interval(
@@ -288,9 +337,30 @@ def iso_interval(
     if has_prev:
         f_prev = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, (ks - 1) * dt)
         n_samples += 1
+    # The samples come in packets (dense trilinear volumes): the pair test reads them
+    # from `buf`; a packet running past `ke` or past termination computes lanes no
+    # one reads (nor counts).
+    buf = lane_buffer(PACKET)
+    lane = 0
+    filled = 0
     k = ks
     while k <= ke and a < ert:
-        f = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, k * dt)
+        if lane == filled:
+            filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf)
+            lane = 0
+            if not dvr and filled > 1:
+                # Most packets hold no crossing: one test for all their pairs, and
+                # past them (what the pair loop below would do sample by sample).
+                count = min(filled, ke - k + 1)
+                if not _crossing_in(values, buf, count, f_prev, has_prev):
+                    f_prev = buf[count - 1]
+                    has_prev = True
+                    n_samples += count
+                    k += count
+                    lane = filled
+                    continue
+        f = buf[lane]
+        lane += 1
         n_samples += 1
         crossed = 0
         if has_prev:

@@ -52,7 +52,8 @@ from .sampler import Nearest, Trilinear, sample
 from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
 from .vectorize import NoAliasCompiler
 
-__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet"]
+__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet",
+           "value_packet"]
 
 #: Lanes of a packet: eight float64 lanes are two AVX2 registers (one AVX-512).
 PACKET = 8
@@ -106,6 +107,25 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
             t = (k + lane) * dt
             v = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
             _classify(table, v, v_lo, scale, lane, buf)
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+def value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+    """Field values of lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf[:PACKET]``.
+
+    :func:`sample_packet` without the transfer function: lane ``l`` holds
+    :func:`.sampler.sample` at ``o + ((k + l) dt) d``, the same float (the
+    isosurface pair test, :func:`.iso.iso_interval`, reads its samples from here).
+    Arguments as for :func:`sample_packet`; ``buf`` must not overlap ``flat``.
+    """
+    if nx >= 2:  # two copies of the lane loop, as in sample_packet
+        for lane in range(PACKET):
+            t = (k + lane) * dt
+            buf[lane] = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
+    else:
+        for lane in range(PACKET):
+            t = (k + lane) * dt
+            buf[lane] = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
 
 
 @njit(cache=True, inline="always")
