@@ -334,15 +334,17 @@ def iso_interval(
     n_hits = 0
     has_prev = ks - 1 >= k_min
     f_prev = 0.0
-    if has_prev:
-        f_prev = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, (ks - 1) * dt)
-        n_samples += 1
     # The samples come in packets (dense trilinear volumes): the pair test reads them
     # from `buf`; a packet running past `ke` or past termination computes lanes no
-    # one reads (nor counts).
+    # one reads (nor counts). The first packet starts at the pair's first sample.
     buf = lane_buffer(PACKET)
     lane = 0
     filled = 0
+    if has_prev:
+        filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, ks - 1, buf)
+        f_prev = buf[0]
+        lane = 1
+        n_samples += 1
     k = ks
     while k <= ke and a < ert:
         if lane == filled:
