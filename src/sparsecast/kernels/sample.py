@@ -103,14 +103,18 @@ def _trilinear_pairs(flat, nx, ny, nz, x, y, z):
 
 def _trilinear_pair_loads(flat, nx, ny, nz, x, y, z):
     i0, _, fx = _axis(x, nx)
-    j0, j1, fy = _axis(y, ny)
-    k0, k1, fz = _axis(z, nz)
-    row0 = k0 * ny
-    row1 = k1 * ny
-    v000, v001 = load_run(flat, (row0 + j0) * nx + i0, 2)
-    v010, v011 = load_run(flat, (row0 + j1) * nx + i0, 2)
-    v100, v101 = load_run(flat, (row1 + j0) * nx + i0, 2)
-    v110, v111 = load_run(flat, (row1 + j1) * nx + i0, 2)
+    j0, _, fy = _axis(y, ny)
+    k0, _, fz = _axis(z, nz)
+    # The cell's upper voxels are one row / one slice on (none on an axis of one
+    # voxel, see _axis): the four rows' addresses from one product, where four
+    # products per lane (64-bit vector multiplies, slow) were computed before.
+    sy = nx if ny > 1 else 0
+    sz = nx * ny if nz > 1 else 0
+    a = (k0 * ny + j0) * nx + i0
+    v000, v001 = load_run(flat, a, 2)
+    v010, v011 = load_run(flat, a + sy, 2)
+    v100, v101 = load_run(flat, a + sz, 2)
+    v110, v111 = load_run(flat, a + sz + sy, 2)
     return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
 
 
