@@ -208,3 +208,19 @@ def test_value_packet_lanes(shape, dtype):
     got = [float(v) for v in buf]
     want = [float(one(flat, (k + lane) * dt)) for lane in range(PACKET)]
     assert got == want
+
+
+@pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"),
+                    reason="counts x86 packed-double instructions in the assembly")
+def test_value_packet_lane_loop_is_vectorised():
+    """The isosurface's value packets vectorise like sample_packet (noalias arguments):
+    what made the naive iso marcher 2x faster would otherwise go unnoticed."""
+    sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
+           *([types.float64] * 7), types.int64, types.float64[::1])
+    opts = {k: v for k, v in value_packet.targetoptions.items() if k not in ("cache", "nopython")}
+    fresh = njit(pipeline_class=NoAliasCompiler, **opts)(value_packet.py_func)
+    fresh.compile(sig)
+    control = njit(**opts)(value_packet.py_func)
+    control.compile(sig)
+    assert _packed_double_ops(fresh, sig) >= 7  # at least the trilinear interpolation's
+    assert _packed_double_ops(control, sig) == 0
