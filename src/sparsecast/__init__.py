@@ -38,6 +38,7 @@ from .render import render
 from .io.particles import load_particles
 from .render.particles import render_particles
 from .transfer import PRESETS, LabelTransferFunction, TransferFunction
+from .threshold import auto_threshold
 from .volume import BrickStats, Volume
 from .warmup import compile_kernels
 
@@ -72,6 +73,7 @@ __all__ = [
     "TransferFunctionError",
     "Volume",
     "VolumeDataError",
+    "auto_threshold",
     "available_indices",
     "build_index",
     "compile_kernels",

@@ -156,3 +156,34 @@ def test_iso_mode_matches_the_api(monkeypatch, capsys, tmp_path, small_volume_fi
     code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--mode", "iso",
                            "-o", str(tmp_path / "none.png"))
     assert code == 2 and "needs isovalues" in err and not (tmp_path / "none.png").exists()
+
+
+def test_default_threshold_rises_above_a_background_peak(monkeypatch, capsys, tmp_path):
+    """A scan whose background noise sits at 30 % of its range: the default (--threshold
+    auto) shows the object and leaves the box's empty corners clear; 0.1 fogs the box."""
+    rng = np.random.default_rng(5)
+    a = rng.normal(0.3, 0.02, (24, 24, 24))
+    z, y, x = np.indices(a.shape)
+    a[(x - 12) ** 2 + (y - 12) ** 2 + (z - 12) ** 2 < 5 ** 2] = 0.8
+    a[0, 0, 0], a[-1, -1, -1] = 0.0, 1.0
+    path = tmp_path / "scan.npy"
+    np.save(path, np.clip(a, 0, 1).astype(np.float32))
+    images = {}
+    for name, extra in (("auto", ()), ("fixed", ("--threshold", "0.1"))):
+        arr = tmp_path / f"{name}.npy"
+        code, _, err = run_cli(monkeypatch, capsys, "render", str(path), "--size", "32x32", "--background",
+                               "transparent", "-o", str(tmp_path / f"{name}.png"), "--array", str(arr), *extra)
+        assert code == 0, err
+        images[name] = np.load(arr)[..., 3]
+    # a pixel whose ray crosses the box beside the ball (the ball's silhouette is the centre)
+    corner = (8, 6)
+    assert images["fixed"][corner] > 0.3
+    assert images["auto"][corner] < 0.01
+    assert images["auto"][16, 16] > 0.5
+
+
+def test_a_threshold_that_is_not_a_number_is_one_clear_error(monkeypatch, capsys, tmp_path, small_volume_file):
+    out = tmp_path / "x.png"
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--threshold", "0,2", "-o", str(out))
+    assert code != 0 and "--threshold" in err and "'0,2'" in err and "auto" in err
+    assert not out.exists()

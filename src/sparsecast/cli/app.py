@@ -65,7 +65,9 @@ TfOpt = Annotated[
                                    "file too), or for label volumes 'labels' (every id but 0) or 'labels:ID,ID,...'.")
 ]
 TfRangeOpt = Annotated[Optional[str], typer.Option(help="Data range 'lo,hi' the TF spans (default: the volume's).")]
-ThresholdOpt = Annotated[float, typer.Option(help="Colour-map presets: transparent below this fraction of the range.")]
+ThresholdOpt = Annotated[str, typer.Option(
+    help="Colour-map presets: transparent below this fraction of the range, or 'auto': 0.1, raised above the "
+         "histogram's background peak when that lies higher (a scan whose background noise is not at the bottom).")]
 DimsOpt = Annotated[Optional[str], typer.Option(help="Raw files: NXxNYxNZ.")]
 DtypeOpt = Annotated[Optional[str], typer.Option(help="Raw files: uint8, uint16, int16, float32, float64.")]
 SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 'sx,sy,sz'.")]

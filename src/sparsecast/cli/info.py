@@ -25,7 +25,7 @@ def info(
     file: FileArg = None,
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
-    threshold: ThresholdOpt = 0.1,
+    threshold: ThresholdOpt = "auto",
     brick_size: Annotated[int, typer.Option(help="Brick edge in cells for the occupancy figure.")] = 8,
     dims: DimsOpt = None,
     dtype: DtypeOpt = None,

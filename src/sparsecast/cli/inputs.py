@@ -90,12 +90,13 @@ def orbit_frame(vol, file: Optional[Path], up: Optional[str], view: Optional[str
     return {"view": "anterior"} if vol.orientation is not None else {}
 
 
-def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float, default_range=None):
+def make_tf(spec: str, vol, tf_range: Optional[str], threshold, default_range=None):
     """A preset over the volume's range (or ``tf_range``), a TF ``.json`` file
     (re-ranged only when ``tf_range`` is given; a label file is used as it is), or a
     label TF: ``labels`` (every id the volume holds but 0, distinct colours) or
     ``labels:1,4,7`` (those ids). ``default_range`` replaces the volume's range as the
-    presets' default (a time series spans the range of all its steps)."""
+    presets' default (a time series spans the range of all its steps). ``threshold``:
+    ``--threshold`` as given (a fraction, or ``auto``: :func:`threshold_value`)."""
     from ..transfer import TransferFunction
 
     if spec.lower() == "labels" or spec.lower().startswith("labels:"):
@@ -104,7 +105,23 @@ def make_tf(spec: str, vol, tf_range: Optional[str], threshold: float, default_r
     if spec.lower().endswith(".json"):
         tf = TransferFunction.load(spec)
         return tf.with_range(value_range) if tf_range else tf
-    return TransferFunction.preset(spec, value_range, threshold=threshold)
+    return TransferFunction.preset(spec, value_range, threshold=threshold_value(threshold, vol, value_range))
+
+
+def threshold_value(threshold, vol, value_range) -> float:
+    """``--threshold``: a fraction as given, or for ``auto`` the volume's
+    (:func:`sparsecast.auto_threshold` over the TF's ``value_range``)."""
+    from ..threshold import auto_threshold
+
+    if isinstance(threshold, str):
+        text = threshold.strip()
+        if text.lower() == "auto":
+            return auto_threshold(vol, value_range)
+        try:
+            return float(text)
+        except ValueError:
+            raise ParameterError(f"--threshold: expected a fraction in [0, 1) or 'auto', got {threshold!r}") from None
+    return float(threshold)
 
 
 def smoothed_labels(tfn, spec: str, smooth: bool):

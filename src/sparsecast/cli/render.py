@@ -34,7 +34,7 @@ def render(
     file: FileArg = None,
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
-    threshold: ThresholdOpt = 0.1,
+    threshold: ThresholdOpt = "auto",
     azimuth: OrbitAzimuthOpt = None,
     elevation: OrbitElevationOpt = None,
     up: UpOpt = None,

@@ -52,7 +52,7 @@ def frame_paths(pattern: Path, n: int, option: str, suffixes) -> list[Path]:
 
 
 def render_series(file: Path, time_step: Optional[int], output: Path, array: Optional[Path], *, tf: str,
-                  tf_range: Optional[str], threshold: float, size: tuple[int, int], orbit: tuple,
+                  tf_range: Optional[str], threshold: str, size: tuple[int, int], orbit: tuple,
                   render_kw: dict[str, Any], load_kw: dict[str, Any], smooth_labels: bool = False) -> None:
     """Render one step (``time_step``) or all of them (``time_step`` None) of the series ``file``."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn

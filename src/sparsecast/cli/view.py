@@ -13,7 +13,7 @@ from .app import (
     SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
-from .inputs import load_input, make_tf, orbit_angles, orbit_frame
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame, threshold_value
 
 __all__ = ["view"]
 
@@ -23,7 +23,7 @@ def view(
     file: FileArg = None,
     tf: TfOpt = "viridis",
     tf_range: TfRangeOpt = None,
-    threshold: ThresholdOpt = 0.1,
+    threshold: ThresholdOpt = "auto",
     index: Annotated[Optional[str], typer.Option(help="Initial spatial index (default auto: chosen per frame from the occupancy, rebuild-cheap while a TF point is dragged).")] = None,
     cell: CellOpt = None,
     up: UpOpt = None,
@@ -93,7 +93,7 @@ def view(
                              time=time_step or 0, camera=CameraSpec(az, el), mode=mode, **extra, **frame)
     if not tf.lower().endswith(".json") and not isinstance(tfn, LabelTransferFunction):
         # Editable form of a preset: its colour map plus a few opacity points.
-        data.tf = spec_from_preset(tf, tfn.value_range, threshold)
+        data.tf = spec_from_preset(tf, tfn.value_range, threshold_value(threshold, vol, tfn.value_range))
     data.client, data.pieces = client, pieces
     server = ViewerServer(data, host, port, allow_remote=allow_remote)
     with err.status("preparing the index and kernels"):
