@@ -65,3 +65,10 @@ def test_the_shared_tooth_ct_renders_the_tooth_not_its_box(shared_file):
     assert 0.3 < t < 0.6 and 0.1 < shown.mean() < 0.5  # 0.1 shows every voxel (the background at 30 %)
     aneurism = sc.load_volume(shared_file("aneurism_256x256x256_uint8.nrrd"))
     assert auto_threshold(aneurism) == DEFAULT_THRESHOLD  # air at the bottom: the default stays
+
+
+def test_a_volume_without_a_histogram_gets_the_default():
+    class Bare:
+        value_range = (0.0, 1.0)
+
+    assert auto_threshold(Bare()) == DEFAULT_THRESHOLD

@@ -59,7 +59,10 @@ def auto_threshold(volume, value_range: tuple[float, float] | None = None, *, fl
     lo, hi = (float(v) for v in (value_range if value_range is not None else volume.value_range))
     if not hi > lo:
         return floor
-    counts, edges = volume.histogram(bins)
+    histogram = getattr(volume, "histogram", None)
+    if histogram is None:  # a volume type that keeps no histogram: the fixed default
+        return floor
+    counts, edges = histogram(bins)
     counts = np.asarray(counts, np.float64)
     if counts.sum() <= 0:
         return floor

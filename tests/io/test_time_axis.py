@@ -104,7 +104,8 @@ def test_cli_renders_a_step_of_a_zarr_series(tmp_path, monkeypatch, capsys):
     a = _series_data()
     zarr.create_array(str(tmp_path / "run.zarr"), data=a, chunks=(1, 8, 8, 8))
     code, out, err = run_cli(monkeypatch, capsys, "render", str(tmp_path / "run.zarr"), "--time", "2",
-                             "--size", "16x16", "-o", str(tmp_path / "t2.png"), "--array", str(tmp_path / "t2.npy"))
+                             "--size", "16x16", "--threshold", "0.1",
+                             "-o", str(tmp_path / "t2.png"), "--array", str(tmp_path / "t2.npy"))
     assert code == 0, err
     ref = sc.render(sc.Volume(a[2]), sc.TransferFunction.preset("viridis", (float(a.min()), float(a.max())),
                                                                 threshold=0.1),
