@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,12 @@ def _series_data(dtype="float32") -> np.ndarray:
 
 def _ome_t(path: Path, a: np.ndarray) -> Path:
     from ome_zarr.format import FormatV04
-    from ome_zarr.writer import write_multiscales_metadata
+
+    with warnings.catch_warnings():
+        # ome_zarr.writer builds a deprecated Scaler as a default argument on import
+        # (as in sparsecast.io.convert); whichever imports it first sees the warning.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from ome_zarr.writer import write_multiscales_metadata
 
     g = zarr.open_group(str(path), mode="w", zarr_format=2)
     g.create_array("0", data=a[:, None], chunks=(1, 1, 8, 8, 8))
