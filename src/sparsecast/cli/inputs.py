@@ -101,11 +101,17 @@ def make_tf(spec: str, vol, tf_range: Optional[str], threshold, default_range=No
 
     if spec.lower() == "labels" or spec.lower().startswith("labels:"):
         return label_tf(spec, vol)
-    value_range = parse_pair(tf_range, "--tf-range") if tf_range else (default_range or vol.value_range)
+    value_range = preset_range(vol, tf_range, default_range)
     if spec.lower().endswith(".json"):
         tf = TransferFunction.load(spec)
         return tf.with_range(value_range) if tf_range else tf
     return TransferFunction.preset(spec, value_range, threshold=threshold_value(threshold, vol, value_range))
+
+
+def preset_range(vol, tf_range: Optional[str], default_range=None) -> tuple[float, float]:
+    """The range a preset of :func:`make_tf` spans: ``--tf-range``, else ``default_range``,
+    else the volume's."""
+    return parse_pair(tf_range, "--tf-range") if tf_range else (default_range or vol.value_range)
 
 
 def threshold_value(threshold, vol, value_range) -> float:

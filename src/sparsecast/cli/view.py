@@ -13,7 +13,7 @@ from .app import (
     SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
-from .inputs import load_input, make_tf, orbit_angles, orbit_frame, threshold_value
+from .inputs import load_input, make_tf, orbit_angles, orbit_frame, preset_range, threshold_value
 
 __all__ = ["view"]
 
@@ -85,15 +85,18 @@ def view(
                          level=level)
     frame = orbit_frame(vol, file, up, view)
     # A series: one TF over the range of every step unless --tf-range fixes it.
-    tfn = make_tf(tf, vol, tf_range, threshold,
-                  default_range=series.value_range if series is not None and not tf_range else None)
+    default_range = series.value_range if series is not None and not tf_range else None
+    if not tf.lower().endswith(".json") and not tf.lower().startswith("labels"):
+        # a preset: resolve --threshold once (auto reads the histogram), for the TF and its editable form
+        threshold = threshold_value(threshold, vol, preset_range(vol, tf_range, default_range))
+    tfn = make_tf(tf, vol, tf_range, threshold, default_range=default_range)
     az, el = orbit_angles(frame, None, None)
     extra = {} if not iso else {"iso": tuple(iso)}
     data = ViewerData.create(vol if series is None else series, tfn, index=index, cell=cell,
                              time=time_step or 0, camera=CameraSpec(az, el), mode=mode, **extra, **frame)
     if not tf.lower().endswith(".json") and not isinstance(tfn, LabelTransferFunction):
         # Editable form of a preset: its colour map plus a few opacity points.
-        data.tf = spec_from_preset(tf, tfn.value_range, threshold_value(threshold, vol, tfn.value_range))
+        data.tf = spec_from_preset(tf, tfn.value_range, threshold)
     data.client, data.pieces = client, pieces
     server = ViewerServer(data, host, port, allow_remote=allow_remote)
     with err.status("preparing the index and kernels"):
