@@ -75,9 +75,9 @@ def main() -> None:
 
     # Write: one AO value per valid texel, in an extra layer of the atlas.
     t0 = time.perf_counter()
-    points, normals, rc = atlas_texels(index)
+    points, normals, texel = atlas_texels(index)
     layer = np.ones(index.atlas_depth.shape, np.float32)
-    layer[rc[:, 0], rc[:, 1]] = ambient_occlusion(index, points, normals, reach, args.rays, rng)
+    layer[texel] = ambient_occlusion(index, points, normals, reach, args.rays, rng)
     index.layers["ao"] = layer
     bake_s = time.perf_counter() - t0
 

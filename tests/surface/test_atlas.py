@@ -1,38 +1,57 @@
-"""Atlas packing: tiles never overlap and stay inside the atlas."""
+"""The texel pool: tiles never overlap, fill the pool, and their records are cache lines."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sparsecast.errors import ParameterError
 from sparsecast.surface import build_rbvh
-from sparsecast.surface.atlas import pack_tiles, tile_frames
+from sparsecast.surface.atlas import pool_offsets, tile_frames, tile_records
 from sparsecast.surface.mesh import icosphere
 
 
-def _assert_disjoint(rect: np.ndarray, shape: tuple[int, int]) -> None:
-    cover = np.zeros(shape, np.int32)
-    for x0, y0, r in rect:
-        assert x0 >= 0 and y0 >= 0 and x0 + r <= shape[1] and y0 + r <= shape[0]
-        cover[y0:y0 + r, x0:x0 + r] += 1
-    assert cover.max() <= 1, "two tiles share texels"
-    assert cover.sum() == int(np.sum(rect[:, 2].astype(np.int64) ** 2))
+def _assert_tiled(offset: np.ndarray, res: np.ndarray, n: int) -> None:
+    """Tile runs ``offset[k] .. offset[k] + res[k]**2`` cover ``0 .. n`` once each."""
+    cover = np.zeros(n, np.int32)
+    for o, r in zip(offset.tolist(), res.tolist()):
+        assert o >= 0 and o + r * r <= n
+        cover[o:o + r * r] += 1
+    assert cover.min() == 1 and cover.max() == 1, "a texel in no tile or in two"
 
 
 @settings(max_examples=25)
 @given(st.lists(st.integers(1, 40), min_size=1, max_size=200))
-def test_shelf_packing_never_overlaps(res):
-    rect, shape = pack_tiles(np.array(res))
-    np.testing.assert_array_equal(rect[:, 2], res)
-    _assert_disjoint(rect, shape)
-    # Shelves waste little: sorted tiles fill most of the atlas.
-    assert np.sum(np.square(res)) >= 0.4 * shape[0] * shape[1]
+def test_pool_offsets_lay_tiles_end_to_end(res):
+    offset, n = pool_offsets(np.array(res))
+    assert n == int(np.sum(np.square(res)))
+    _assert_tiled(offset, np.array(res), n)
+
+
+def test_pool_past_int32_offsets_is_one_clear_error():
+    with pytest.raises(ParameterError, match="2\\*\\*31"):
+        pool_offsets(np.array([46341, 2]))  # 46341**2 > 2**31
+
+
+def test_tile_records_are_cache_lines_with_their_fields(rng):
+    proj = rng.normal(size=(5, 12)).astype(np.float32)
+    height = rng.normal(size=(5, 2)).astype(np.float32)
+    offset, res = np.array([0, 36, 100, 164, 200]), np.array([6, 8, 8, 6, 4])
+    rec = tile_records(proj, height, offset, res)
+    assert rec.shape == (5, 16) and rec.dtype == np.float32 and rec.ctypes.data % 64 == 0
+    np.testing.assert_array_equal(rec[:, :12], proj)
+    np.testing.assert_array_equal(rec[:, 12:14], height)
+    np.testing.assert_array_equal(rec.view(np.int32)[:, 14], offset)
+    np.testing.assert_array_equal(rec.view(np.int32)[:, 15], res)
 
 
 def test_built_atlas_tiles_are_disjoint():
-    index = build_rbvh(icosphere(4), "Q3")
-    _assert_disjoint(index.tile_rect, index.atlas_depth.shape)
+    index = build_rbvh(icosphere(4), "Q3", mip_levels=2)
+    assert index.atlas_depth.ndim == 1 and index.atlas_normal.shape == (len(index.atlas_depth), 3)
+    _assert_tiled(index.tile_offset, index.tile_res, len(index.atlas_depth))
+    assert index.tiles.ctypes.data % 64 == 0
 
 
 def test_tile_frames_are_orthonormal_and_follow_the_normal(rng):
@@ -51,13 +70,13 @@ def test_atlas_as_surface_storage_round_trip(rng):
     from sparsecast.surface.mesh import grid_plane
 
     index = build_rbvh(grid_plane(32), "Q3")
-    pos, nrm, rc = atlas_texels(index)
+    pos, nrm, texel = atlas_texels(index)
     inside = np.all((pos[:, :2] > 0) & (pos[:, :2] < 1), axis=1)
     np.testing.assert_allclose(pos[inside, 2], 0.0, atol=1e-6)
     np.testing.assert_allclose(np.abs(nrm[:, 2]), 1.0, atol=1e-2)
     # Store x + 2y per texel: a linear field, so bilinear reads are exact.
     layer = np.zeros(index.atlas_depth.shape)
-    layer[rc[:, 0], rc[:, 1]] = pos[:, 0] + 2 * pos[:, 1]
+    layer[texel] = pos[:, 0] + 2 * pos[:, 1]
     target = np.c_[rng.uniform(0.05, 0.95, (300, 2)), np.zeros(300)]
     hits = raycast(index, target + [0, 0, 1], np.tile([0.0, 0.0, -1.0], (300, 1)))
     got = read_layer(index, layer, hits.tile, hits.uv)

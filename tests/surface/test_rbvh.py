@@ -211,8 +211,8 @@ def test_mip_levels_follow_the_footprint_without_cracks(rng):
     mesh = icosphere(5)
     index = build_rbvh(mesh, "Q2", mip_levels=3)
     n = index.n_tiles
-    assert index.tile_rect.shape[0] == 3 * n
-    assert np.all(index.tile_rect[2 * n:, 2] <= index.tile_rect[:n, 2])  # coarser levels are smaller
+    assert index.tiles.shape[0] == 3 * n
+    assert np.all(index.tile_res[2 * n:] <= index.tile_res[:n])  # coarser levels are smaller
     d = rng.normal(size=(2000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     fine = raycast(index, -3.0 * d, d)

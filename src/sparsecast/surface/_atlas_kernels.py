@@ -1,9 +1,10 @@
 """Atlas rasterization kernels (Numba, parallel over tiles; each tile owns its texels).
 
 Conventions as in :mod:`._rbvh_kernels`: texel ``(i, j)`` of tile ``k`` sits at
-texel coordinates ``(s, t) = (i, j)`` and is stored at
-``depth[y0 + j, x0 + i]``; depth is the height along ``W`` and the surface kept
-is the one nearest to a viewer on the ``+W`` side (the largest height).
+texel coordinates ``(s, t) = (i, j)`` and is stored in the pool at
+``depth[o + j * r + i]`` (``tile_texels[k] = (o, r)``: offset and edge); depth is
+the height along ``W`` and the surface kept is the one nearest to a viewer on the
+``+W`` side (the largest height).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def _to_tile(P, x, y, z):
 
 
 @njit(cache=True, parallel=True)
-def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris, faces, vnormals,
+def rasterize_triangles(tile_proj, tile_texels, tile_start, tile_count, refs, tris, faces, vnormals,
                         depth, normal):
     """Depth (max height) and interpolated vertex normal of each tile's triangles.
 
@@ -43,7 +44,7 @@ def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris
     """
     for k in prange(tile_proj.shape[0]):
         P = tile_proj[k]
-        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        o, r = tile_texels[k, 0], tile_texels[k, 1]
         # > 0 inside some triangle; <= 0: how far outside the writer's triangle was
         score = np.full((r, r), -np.inf)
         for q in range(tile_start[k], tile_start[k] + tile_count[k]):
@@ -74,7 +75,7 @@ def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris
                     m = min(b0, b1, b2)
                     h = b0 * h0 + b1 * h1 + b2 * h2
                     if m >= -EDGE_EPS:
-                        if score[j, i] > 0.0 and h <= depth[y0 + j, x0 + i]:
+                        if score[j, i] > 0.0 and h <= depth[o + j * r + i]:
                             continue
                         score[j, i] = 1.0
                     else:
@@ -87,14 +88,14 @@ def rasterize_triangles(tile_proj, tile_rect, tile_start, tile_count, refs, tris
                         b0, b1, b2 = max(b0, 0.0), max(b1, 0.0), max(b2, 0.0)
                         sb = b0 + b1 + b2
                         b0, b1, b2 = b0 / sb, b1 / sb, b2 / sb
-                    depth[y0 + j, x0 + i] = h
+                    depth[o + j * r + i] = h
                     for c in range(3):
-                        normal[y0 + j, x0 + i, c] = (b0 * vnormals[v0, c] + b1 * vnormals[v1, c]
+                        normal[o + j * r + i, c] = (b0 * vnormals[v0, c] + b1 * vnormals[v1, c]
                                                      + b2 * vnormals[v2, c])
 
 
 @njit(cache=True, parallel=True)
-def splat_points(tile_proj, tile_rect, tile_steps, tile_start, tile_count, refs, points, pnormals, radii,
+def splat_points(tile_proj, tile_texels, tile_steps, tile_start, tile_count, refs, points, pnormals, radii,
                  depth, normal):
     """Oriented discs: every texel whose column meets a disc gets the disc's height there.
 
@@ -102,7 +103,7 @@ def splat_points(tile_proj, tile_rect, tile_steps, tile_start, tile_count, refs,
     """
     for k in prange(tile_proj.shape[0]):
         P = tile_proj[k]
-        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+        o, r = tile_texels[k, 0], tile_texels[k, 1]
         du, dv = tile_steps[k, 0], tile_steps[k, 1]
         for q in range(tile_start[k], tile_start[k] + tile_count[k]):
             p = refs[q]
@@ -126,15 +127,15 @@ def splat_points(tile_proj, tile_rect, tile_steps, tile_start, tile_count, refs,
                     if eu * eu + ev * ev + eh * eh > rad * rad:
                         continue
                     h = hc + eh
-                    if h > depth[y0 + j, x0 + i]:
-                        depth[y0 + j, x0 + i] = h
-                        normal[y0 + j, x0 + i, 0] = pnormals[p, 0]
-                        normal[y0 + j, x0 + i, 1] = pnormals[p, 1]
-                        normal[y0 + j, x0 + i, 2] = pnormals[p, 2]
+                    if h > depth[o + j * r + i]:
+                        depth[o + j * r + i] = h
+                        normal[o + j * r + i, 0] = pnormals[p, 0]
+                        normal[o + j * r + i, 1] = pnormals[p, 1]
+                        normal[o + j * r + i, 2] = pnormals[p, 2]
 
 
 @njit(cache=True, parallel=True)
-def dilate(tile_rect, tile_steps, depth, normal, passes, max_slope):
+def dilate(tile_texels, tile_steps, depth, normal, passes, max_slope):
     """Grow every tile's surface by ``passes`` texels into empty texels.
 
     A new depth extrapolates the neighbour's with its gradient (``2 h1 - h2``
@@ -144,11 +145,11 @@ def dilate(tile_rect, tile_steps, depth, normal, passes, max_slope):
     neighbours' mean. The border keeps adjacent tiles overlapping, so rays
     through a seam find a surface (no cracks).
     """
-    for k in prange(tile_rect.shape[0]):
-        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+    for k in prange(tile_texels.shape[0]):
+        o, r = tile_texels[k, 0], tile_texels[k, 1]
         step = min(tile_steps[k, 0], tile_steps[k, 1])
         for _ in range(passes):
-            d_old = depth[y0:y0 + r, x0:x0 + r].copy()
+            d_old = depth[o:o + r * r].copy().reshape((r, r))
             for j in range(r):
                 for i in range(r):
                     if d_old[j, i] > EMPTY_TEST:
@@ -171,26 +172,26 @@ def dilate(tile_rect, tile_steps, depth, normal, passes, max_slope):
                         else:
                             acc += h1
                         cnt += 1
-                        nx += normal[y0 + j1, x0 + i1, 0]
-                        ny += normal[y0 + j1, x0 + i1, 1]
-                        nz += normal[y0 + j1, x0 + i1, 2]
+                        nx += normal[o + j1 * r + i1, 0]
+                        ny += normal[o + j1 * r + i1, 1]
+                        nz += normal[o + j1 * r + i1, 2]
                     if cnt > 0:
-                        depth[y0 + j, x0 + i] = acc / cnt
-                        normal[y0 + j, x0 + i, 0] = nx / cnt
-                        normal[y0 + j, x0 + i, 1] = ny / cnt
-                        normal[y0 + j, x0 + i, 2] = nz / cnt
+                        depth[o + j * r + i] = acc / cnt
+                        normal[o + j * r + i, 0] = nx / cnt
+                        normal[o + j * r + i, 1] = ny / cnt
+                        normal[o + j * r + i, 2] = nz / cnt
 
 
 @njit(cache=True, parallel=True)
-def tile_height_range(tile_rect, depth, pad):
+def tile_height_range(tile_texels, depth, pad):
     """``(min, max)`` valid height per tile, widened by ``pad`` (tiles may be empty: (0, -1))."""
-    out = np.empty((tile_rect.shape[0], 2), np.float32)
-    for k in prange(tile_rect.shape[0]):
-        x0, y0, r = tile_rect[k, 0], tile_rect[k, 1], tile_rect[k, 2]
+    out = np.empty((tile_texels.shape[0], 2), np.float32)
+    for k in prange(tile_texels.shape[0]):
+        o, r = tile_texels[k, 0], tile_texels[k, 1]
         lo, hi = np.inf, -np.inf
         for j in range(r):
             for i in range(r):
-                h = depth[y0 + j, x0 + i]
+                h = depth[o + j * r + i]
                 if h > EMPTY_TEST:
                     lo = min(lo, h)
                     hi = max(hi, h)

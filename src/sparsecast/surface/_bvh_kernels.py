@@ -22,7 +22,7 @@ from numba import njit, prange
 
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
-from ._rbvh_kernels import tile_hit, tile_normal
+from ._rbvh_kernels import TILE_OFFSET, TILE_RES, tile_hit, tile_normal
 from ._wide_kernels import _inv, slab_origins, vertex_normal  # one safe inverse, one shading normal for both layouts
 
 #: ``node_count`` of a tile leaf
@@ -103,10 +103,10 @@ def intersect_disc(discs, k, ox, oy, oz, dx, dy, dz, t_min, t_max):
 
 
 @njit(cache=True, inline="always")
-def mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
+def mip_tile(k, t_entry, fp0, spread, n_levels, tiles, n_tiles):
     """Tile of leaf ``k`` at the mip level whose texel is at least the ray footprint."""
     fp = fp0 + spread * max(t_entry, 0.0)
-    u2 = tile_proj[k, 3] * tile_proj[k, 3] + tile_proj[k, 4] * tile_proj[k, 4] + tile_proj[k, 5] * tile_proj[k, 5]
+    u2 = tiles[k, 3] * tiles[k, 3] + tiles[k, 4] * tiles[k, 4] + tiles[k, 5] * tiles[k, 5]
     ratio = fp * math.sqrt(u2)  # footprint in level-0 texels
     level = 0
     while ratio >= 2.0 and level < n_levels - 1:
@@ -116,17 +116,17 @@ def mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles):
 
 
 @njit(cache=True)
-def hit_normal(faces, vnormals, tile_rect, atlas_normal, leaf_tri, tile, a, b):
+def hit_normal(faces, vnormals, tiles_i, atlas_normal, leaf_tri, tile, a, b):
     """Unit shading normal of a hit on leaf triangle ``leaf_tri`` (barycentrics ``a, b`` of
     vertices 1 and 2) or, when ``leaf_tri < 0``, on ``tile`` at texel coordinates ``(a, b)``."""
     if leaf_tri >= 0:
         return vertex_normal(faces, vnormals, leaf_tri, a, b)
-    return tile_normal(atlas_normal, tile_rect[tile, 0], tile_rect[tile, 1], tile_rect[tile, 2], a, b)
+    return tile_normal(atlas_normal, tiles_i[tile, TILE_OFFSET], tiles_i[tile, TILE_RES], a, b)
 
 
 @njit(cache=True)
 def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
+                tiles, tiles_i, atlas_depth, atlas_normal, discs, disc_point,
                 ox, oy, oz, dx, dy, dz, t_min, t_max, stack, fp0, spread, n_levels):
     """Nearest hit along the ray in ``[t_min, t_max]``.
 
@@ -188,8 +188,8 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
             k = nchild[node]
             if n_levels > 1:
                 k = mip_tile(k, ray_box(nb, node, ob, ix, iy, iz, t_min, best), fp0, spread,
-                              n_levels, tile_proj, tile_rect.shape[0] // n_levels)
-            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
+                              n_levels, tiles, tiles.shape[0] // n_levels)
+            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tiles, tiles_i, atlas_depth)
             if t < best:
                 best, face, best_k, best_disc, tile, ha, hb = t, -1, -1, -1, k, s, u
         # Pop the next node that the ray still reaches before the best hit.
@@ -207,13 +207,13 @@ def closest_hit(nb, nchild, ncount, tris, tri_face, faces, vnormals,
     if best_disc >= 0:
         nx, ny, nz = discs[best_disc, 3], discs[best_disc, 4], discs[best_disc, 5]
     else:
-        nx, ny, nz = hit_normal(faces, vnormals, tile_rect, atlas_normal, best_k, tile, ha, hb)
+        nx, ny, nz = hit_normal(faces, vnormals, tiles_i, atlas_normal, best_k, tile, ha, hb)
     return best, nx, ny, nz, face, tile, ha, hb
 
 
 @njit(cache=True, parallel=True)
 def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-              tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
+              tiles, tiles_i, atlas_depth, atlas_normal, discs, disc_point,
               origins, dirs, t_min, t_max, stack_size, fp0, spread, n_levels,
               out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of a batch of rays (unit directions), in parallel chunks.
@@ -227,7 +227,7 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
         for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit(
                 nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
+                tiles, tiles_i, atlas_depth, atlas_normal, discs, disc_point,
                 origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
                 t_min, t_max, stack, fp0, spread, n_levels)
             out_t[r] = t
@@ -238,7 +238,7 @@ def cast_rays(nb, nchild, ncount, tris, tri_face, faces, vnormals,
 
 @njit(cache=True, parallel=True)
 def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                 tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
+                 tiles, tiles_i, atlas_depth, atlas_normal, discs, disc_point,
                  params, width, height, stack_size, n_levels,
                  out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles.
@@ -259,7 +259,7 @@ def cast_primary(nb, nchild, ncount, tris, tri_face, faces, vnormals,
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit(
                     nb, nchild, ncount, tris, tri_face, faces, vnormals,
-                    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal, discs, disc_point,
+                    tiles, tiles_i, atlas_depth, atlas_normal, discs, disc_point,
                     ox, oy, oz, dx, dy, dz, 0.0, np.inf, stack, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz

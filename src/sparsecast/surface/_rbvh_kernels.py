@@ -1,8 +1,12 @@
 """Height-field tile intersection for RBVH leaves (Numba).
 
-A tile ``k`` is an ``R x R`` grid of depths stored at ``atlas_depth[y0:y0+R, x0:x0+R]``
-(``tile_rect[k] = (x0, y0, R)``) with a normal layer beside it. Its orthographic
-projection ``tile_proj[k]`` (12 floats) is ``O, U, V, W``: a world point ``p`` has
+A tile ``k`` is an ``R x R`` grid of depths stored row by row at
+``depth[o : o + R * R]`` of the texel pool, with a normal layer aligned with it
+(:mod:`.atlas`). Its record ``tiles[k]`` is one 64-byte line of 16 words
+(:data:`TILE_WORDS`): the orthographic projection (12 floats, ``O, U, V, W``),
+the valid texels' height range at :data:`TILE_H`, and as int32 bits (read through
+the int32 view ``tiles_i``) the pool offset ``o`` at :data:`TILE_OFFSET` and ``R``
+at :data:`TILE_RES`. A world point ``p`` has
 texel coordinates ``s = (p - O) . U``, ``t = (p - O) . V`` in ``[0, R-1]`` (``U`` and
 ``V`` carry the inverse texel spacing) and height ``h = (p - O) . W`` along the unit
 projection direction ``W``. Texels are vertex-centred, so the bilinear surface spans
@@ -26,6 +30,13 @@ EMPTY_TEST = -1e29
 SECANT_STEPS = 4
 #: normals are stored as int8, scaled by this
 NORMAL_SCALE = 127.0
+#: words of a tile record: one 64-byte cache line
+TILE_WORDS = 16
+#: record word of the lower height bound (the upper follows)
+TILE_H = 12
+#: record words (int32 bits) of the pool offset and of the edge R
+TILE_OFFSET = 14
+TILE_RES = 15
 
 
 @njit(cache=True, inline="always")
@@ -35,8 +46,9 @@ def _bilerp(h00, h10, h01, h11, fs, ft):
 
 
 @njit(cache=True)
-def tile_normal(normal, x0, y0, r, s, t):
-    """Bilinear unit normal from the int8 normal layer (unnormalised if all zero)."""
+def tile_normal(normal, o, r, s, t):
+    """Bilinear unit normal at texel coordinates ``(s, t)`` of the tile at pool offset ``o``
+    with edge ``r``, from the int8 normal layer (zero if the four normals cancel)."""
     i = min(max(int(s), 0), r - 2)
     j = min(max(int(t), 0), r - 2)
     fs = s - i
@@ -45,13 +57,13 @@ def tile_normal(normal, x0, y0, r, s, t):
     w10 = fs * (1.0 - ft)
     w01 = (1.0 - fs) * ft
     w11 = fs * ft
-    y1, x1 = y0 + j, x0 + i
-    nx = (w00 * normal[y1, x1, 0] + w10 * normal[y1, x1 + 1, 0]
-          + w01 * normal[y1 + 1, x1, 0] + w11 * normal[y1 + 1, x1 + 1, 0])
-    ny = (w00 * normal[y1, x1, 1] + w10 * normal[y1, x1 + 1, 1]
-          + w01 * normal[y1 + 1, x1, 1] + w11 * normal[y1 + 1, x1 + 1, 1])
-    nz = (w00 * normal[y1, x1, 2] + w10 * normal[y1, x1 + 1, 2]
-          + w01 * normal[y1 + 1, x1, 2] + w11 * normal[y1 + 1, x1 + 1, 2])
+    a = o + j * r + i
+    nx = (w00 * normal[a, 0] + w10 * normal[a + 1, 0]
+          + w01 * normal[a + r, 0] + w11 * normal[a + r + 1, 0])
+    ny = (w00 * normal[a, 1] + w10 * normal[a + 1, 1]
+          + w01 * normal[a + r, 1] + w11 * normal[a + r + 1, 1])
+    nz = (w00 * normal[a, 2] + w10 * normal[a + 1, 2]
+          + w01 * normal[a + r, 2] + w11 * normal[a + r + 1, 2])
     ln = math.sqrt(nx * nx + ny * ny + nz * nz)
     if ln > 0.0:
         return nx / ln, ny / ln, nz / ln
@@ -70,7 +82,7 @@ def _border(c, o, d, inv):
 
 
 @njit(cache=True)
-def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_rect, depth):
+def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tiles, tiles_i, depth):
     """First crossing of the ray with height-field tile ``k`` in ``[t_min, t_max]``.
 
     The linear search visits the cells of the tile under the ray in order (a 2-D
@@ -81,17 +93,17 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     corner hold no surface.
 
     Returns ``(t, s, u)``: the ray parameter (``inf`` on a miss) and the texel
-    coordinates of the hit.
+    coordinates of the hit. ``tiles`` (T, 16) float32 are the tile records and
+    ``tiles_i`` their int32 view; ``depth`` (N,) float32 is the texel pool.
     """
     # Element reads, not row views: a view costs reference-count updates that
     # threads contend on in this innermost loop.
-    x0 = tile_rect[k, 0]
-    y0 = tile_rect[k, 1]
-    r = tile_rect[k, 2]
-    rx, ry, rz = ox - tile_proj[k, 0], oy - tile_proj[k, 1], oz - tile_proj[k, 2]
-    ux, uy, uz = tile_proj[k, 3], tile_proj[k, 4], tile_proj[k, 5]
-    vx, vy, vz = tile_proj[k, 6], tile_proj[k, 7], tile_proj[k, 8]
-    wx, wy, wz = tile_proj[k, 9], tile_proj[k, 10], tile_proj[k, 11]
+    o = tiles_i[k, TILE_OFFSET]
+    r = tiles_i[k, TILE_RES]
+    rx, ry, rz = ox - tiles[k, 0], oy - tiles[k, 1], oz - tiles[k, 2]
+    ux, uy, uz = tiles[k, 3], tiles[k, 4], tiles[k, 5]
+    vx, vy, vz = tiles[k, 6], tiles[k, 7], tiles[k, 8]
+    wx, wy, wz = tiles[k, 9], tiles[k, 10], tiles[k, 11]
     s0 = rx * ux + ry * uy + rz * uz
     ds = dx * ux + dy * uy + dz * uz
     u0 = rx * vx + ry * vy + rz * vz
@@ -101,7 +113,7 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
     inv_s, flat_s = inverse(ds)
     inv_u, flat_u = inverse(du)
     inv_h, flat_h = inverse(dh)
-    ta, tb = slab(h0, inv_h, flat_h, tile_h[k, 0], tile_h[k, 1], t_min, t_max)
+    ta, tb = slab(h0, inv_h, flat_h, tiles[k, TILE_H], tiles[k, TILE_H + 1], t_min, t_max)
     ta, tb = slab(s0, inv_s, flat_s, 0.0, r - 1.0, ta, tb)
     ta, tb = slab(u0, inv_u, flat_u, 0.0, r - 1.0, ta, tb)
     if ta > tb:
@@ -123,10 +135,11 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tile_proj, tile_h, tile_re
         t_exit = min(t_i, t_j, tb)
         if t_exit < t:
             t_exit = t
-        h00 = depth[y0 + j, x0 + i]
-        h10 = depth[y0 + j, x0 + i + 1]
-        h01 = depth[y0 + j + 1, x0 + i]
-        h11 = depth[y0 + j + 1, x0 + i + 1]
+        a0 = o + j * r + i
+        h00 = depth[a0]
+        h10 = depth[a0 + 1]
+        h01 = depth[a0 + r]
+        h11 = depth[a0 + r + 1]
         if h00 > EMPTY_TEST and h10 > EMPTY_TEST and h01 > EMPTY_TEST and h11 > EMPTY_TEST:
             # Bilinear patches agree on a shared border, so the previous cell's
             # exit value is this cell's entry value.

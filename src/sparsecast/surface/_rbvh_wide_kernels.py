@@ -61,7 +61,7 @@ def _leaf_entry(box, node, c, rows, org, inv, t_min):
 
 
 @njit(cache=True, inline="always")
-def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                           atlas_depth, atlas_normal, ox, oy, oz, dx, dy, dz, t_min, t_max,
                           st_node, st_t, lane_b, fp0, spread, n_levels):
     """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) float64 and
@@ -84,7 +84,7 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj
     rows64 = (0 if ix >= 0.0 else 12, 4 if iy >= 0.0 else 16, 8 if iz >= 0.0 else 20)
     org64 = (slab_origins(ox, dx)[0], slab_origins(oy, dy)[0], slab_origins(oz, dz)[0])
     inv64 = (ix, iy, iz)
-    n_tiles = tile_rect.shape[0] // n_levels
+    n_tiles = tiles.shape[0] // n_levels
     best = t_max
     hi = _cull(best)
     face = -1
@@ -131,19 +131,19 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj
             k = first
             if n_levels > 1:
                 t_entry = _leaf_entry(box, node, c, rows64, org64, inv64, t_min)
-                k = mip_tile(k, t_entry, fp0, spread, n_levels, tile_proj, n_tiles)
-            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tile_proj, tile_h, tile_rect, atlas_depth)
+                k = mip_tile(k, t_entry, fp0, spread, n_levels, tiles, n_tiles)
+            t, s, u = tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, best, tiles, tiles_i, atlas_depth)
             if t < best:
                 best, face, best_k, tile, ha, hb = t, -1, -1, k, s, u
         hi = _cull(best)
     if face < 0 and tile < 0:
         return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
-    nx, ny, nz = hit_normal(faces, vnormals, tile_rect, atlas_normal, best_k, tile, ha, hb)
+    nx, ny, nz = hit_normal(faces, vnormals, tiles_i, atlas_normal, best_k, tile, ha, hb)
     return best, nx, ny, nz, face, tile, ha, hb
 
 
 @njit(cache=True, parallel=True)
-def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                         atlas_depth, atlas_normal, origins, dirs, t_min, t_max, n_stack, fp0, spread, n_levels,
                         out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`.
@@ -155,12 +155,12 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, 
     for ck in prange(n_chunks):
         scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
         # Borrowed views: owned arrays passed per ray cost atomic reference counts (kernels.borrow).
-        bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
-            (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
+        bx, ch, tr, tf, fa, vn, rec, reci, ad, an = borrowed(
+            (box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal))
         st_node, st_t, lane_b = borrowed(scratch)
         for r in range(ck * RAY_CHUNK, min(n, (ck + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, origins[r, 0], origins[r, 1], origins[r, 2],
+                bx, ch, tr, tf, fa, vn, rec, reci, ad, an, origins[r, 0], origins[r, 1], origins[r, 2],
                 dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, fp0, spread, n_levels)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
@@ -170,7 +170,7 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, 
 
 
 @njit(cache=True, parallel=True)
-def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect,
+def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                            atlas_depth, atlas_normal, params, width, height, n_stack, n_levels,
                            out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
@@ -181,15 +181,15 @@ def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tile_pro
     spread = pixel if params[12] != 0.0 else 0.0
     for tile in prange(tile_count(width, height)):
         scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
-        bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an = borrowed(
-            (box, child, tris, tri_face, faces, vnormals, tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal))
+        bx, ch, tr, tf, fa, vn, rec, reci, ad, an = borrowed(
+            (box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal))
         st_node, st_t, lane_b = borrowed(scratch)
         x0, x1, y0, y1 = tile_bounds(tile, width, height)
         for py in range(y0, y1):
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                    bx, ch, tr, tf, fa, vn, tp, th, rc, ad, an, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
+                    bx, ch, tr, tf, fa, vn, rec, reci, ad, an, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
                     st_node, st_t, lane_b, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ._bvh_kernels import TILE_LEAF, cast_primary, cast_rays
+from ._rbvh_kernels import TILE_H, TILE_OFFSET, TILE_RES, TILE_WORDS
 from ._rbvh_wide_kernels import cast_primary_rbvh_wide, cast_rays_rbvh_wide
 from ._wide_kernels import cast_primary_wide, cast_rays_wide
 from .rbvh_wide import WideRBVH
@@ -28,11 +29,9 @@ __all__ = ["SurfaceIndex", "Hits", "RayCast", "raycast", "empty_atlas_arrays"]
 def empty_atlas_arrays() -> dict[str, np.ndarray]:
     """Tile arrays of an index without tiles (dtypes as the kernels expect)."""
     return dict(
-        tile_proj=np.zeros((0, 12), np.float32),
-        tile_h=np.zeros((0, 2), np.float32),
-        tile_rect=np.zeros((0, 3), np.int32),
-        atlas_depth=np.zeros((1, 1), np.float32),
-        atlas_normal=np.zeros((1, 1, 3), np.int8),
+        tiles=np.zeros((0, TILE_WORDS), np.float32),
+        atlas_depth=np.zeros(1, np.float32),
+        atlas_normal=np.zeros((1, 3), np.int8),
     )
 
 
@@ -54,9 +53,14 @@ class SurfaceIndex:
     faces, vnormals : (k, 3) int32 and float32 normals
         Shading: leaf triangle ``k`` has corner normals ``vnormals[faces[k]]``; in
         the wide layout ``k`` is the mesh face.
-    tile_proj, tile_h, tile_rect, atlas_depth, atlas_normal
-        Tile projections, height ranges, atlas rectangles, the depth layer and the
-        int8 normal layer (see :mod:`._rbvh_kernels`).
+    tiles : (T, 16) float32
+        One 64-byte record per tile (projection, height range, pool offset and
+        edge; see :mod:`._rbvh_kernels`); :attr:`tile_proj`, :attr:`tile_h`,
+        :attr:`tile_offset` and :attr:`tile_res` are views of its fields.
+    atlas_depth : (N,) float32
+        The texel pool: every tile's ``R x R`` depths, row by row (:mod:`.atlas`).
+    atlas_normal : (N, 3) int8
+        The int8 normal layer, aligned with ``atlas_depth``.
     discs : (d, 7) float32
         Discs of the disc leaves in leaf order (an exact BVH over a point cloud):
         centre, unit normal, radius; ``disc_point`` (d,) int32 maps them to the
@@ -82,9 +86,7 @@ class SurfaceIndex:
     tri_face: np.ndarray
     faces: np.ndarray
     vnormals: np.ndarray
-    tile_proj: np.ndarray
-    tile_h: np.ndarray
-    tile_rect: np.ndarray
+    tiles: np.ndarray
     atlas_depth: np.ndarray
     atlas_normal: np.ndarray
     depth: int
@@ -121,18 +123,38 @@ class SurfaceIndex:
     @property
     def n_tiles(self) -> int:
         """Tiles of the finest level (one per tile leaf)."""
-        return int(self.tile_rect.shape[0]) // self.mip_levels
+        return int(self.tiles.shape[0]) // self.mip_levels
+
+    @property
+    def tile_proj(self) -> np.ndarray:
+        """(T, 12) float32 view: ``O, U, V, W`` of every tile (all mip levels)."""
+        return self.tiles[:, :12]
+
+    @property
+    def tile_h(self) -> np.ndarray:
+        """(T, 2) float32 view: height range of every tile's valid texels."""
+        return self.tiles[:, TILE_H:TILE_H + 2]
+
+    @property
+    def tile_offset(self) -> np.ndarray:
+        """(T,) int32 view: where every tile's texels start in the pool (``atlas_depth``)."""
+        return self.tiles.view(np.int32)[:, TILE_OFFSET]
+
+    @property
+    def tile_res(self) -> np.ndarray:
+        """(T,) int32 view: every tile's edge ``R`` in texels (``R x R`` texels)."""
+        return self.tiles.view(np.int32)[:, TILE_RES]
 
     def kernel_args(self) -> tuple:
         """The arrays every binary-layout traversal kernel takes, in order."""
         return (self.node_bounds, self.node_child, self.node_count, self.tris, self.tri_face,
-                self.faces, self.vnormals, self.tile_proj, self.tile_h, self.tile_rect,
+                self.faces, self.vnormals, self.tiles, self.tiles.view(np.int32),
                 self.atlas_depth, self.atlas_normal, self.discs, self.disc_point)
 
     def _rbvh_wide_args(self) -> tuple:
         w = self.wide_rbvh
         return (w.nodes, w.nodes.view(np.int32), self.tris, self.tri_face, self.faces, self.vnormals,
-                self.tile_proj, self.tile_h, self.tile_rect, self.atlas_depth, self.atlas_normal)
+                self.tiles, self.tiles.view(np.int32), self.atlas_depth, self.atlas_normal)
 
     def ray_call(self, origins: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float,
                  footprint: tuple[float, float], out: tuple) -> tuple[Any, tuple]:
@@ -171,8 +193,7 @@ class SurfaceIndex:
             "nodes": int(self.node_bounds.nbytes + self.node_child.nbytes + self.node_count.nbytes) + wide["nodes"],
             "triangles": int(self.tris.nbytes + self.tri_face.nbytes) + wide["triangles"],
             "discs": int(self.discs.nbytes + self.disc_point.nbytes),
-            "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tile_proj.nbytes
-                         + self.tile_h.nbytes + self.tile_rect.nbytes) if tiles else 0,
+            "atlas": int(self.atlas_depth.nbytes + self.atlas_normal.nbytes + self.tiles.nbytes) if tiles else 0,
             # Smooth shading of triangle hits: corner indices and vertex normals.
             "shading": int(self.faces.nbytes + self.vnormals.nbytes),
         }
@@ -197,8 +218,7 @@ class SurfaceIndex:
             "discs": int(len(self.discs)),
             "tiles": self.n_tiles,
             "mip_levels": self.mip_levels,
-            "texels": int(np.sum(self.tile_rect[:, 2].astype(np.int64) ** 2)) if self.n_tiles else 0,
-            "atlas_shape": list(self.atlas_depth.shape) if self.n_tiles else [0, 0],
+            "texels": int(np.sum(self.tile_res.astype(np.int64) ** 2)) if self.n_tiles else 0,
             "depth": self.depth if w is None else w.depth,
             **({"wide_depth": self.wide_rbvh.depth} if self.wide_rbvh is not None else {}),
             "bytes": int(sum(b.values())),

@@ -352,8 +352,7 @@ def build_rbvh(surface: TriangleMesh | PointCloud, quality: str | Quality = "Q2"
         node_child[t_nodes] = np.arange(len(t_nodes), dtype=np.int32)
         node_count[t_nodes] = TILE_LEAF
         node_bounds[t_nodes] = atlas.boxes
-        atlas_arrays = dict(tile_proj=atlas.tile_proj, tile_h=atlas.tile_h, tile_rect=atlas.tile_rect,
-                            atlas_depth=atlas.depth, atlas_normal=atlas.normal)
+        atlas_arrays = dict(tiles=atlas.tiles, atlas_depth=atlas.depth, atlas_normal=atlas.normal)
     phases["atlas"] = time.perf_counter() - tic
     tic = time.perf_counter()
     K.refit(node_bounds, node_child, node_count)
