@@ -29,7 +29,7 @@ from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
 from ._rbvh_wide_build_kernels import WIDTH
 from ._rbvh_kernels import tile_hit
 from ..kernels.simd import slab4
-from ._wide_kernels import D_FLUSH, _cull, _f32, _inv, slab_origins, slab_setup32
+from ._wide_kernels import D_FLUSH, _cull, _f32, _inv, slab_origins, slab_setup32_flat
 
 # slab4 tests exactly four boxes a node (<4 x float>)
 if WIDTH != 4:  # pragma: no cover - a guard for whoever changes WIDTH
@@ -78,7 +78,11 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, ti
     bdx = 0.0 if abs(dx) < D_FLUSH else dx
     bdy = 0.0 if abs(dy) < D_FLUSH else dy
     bdz = 0.0 if abs(dz) < D_FLUSH else dz
-    rows, org, inv = slab_setup32(ox, oy, oz, bdx, bdy, bdz)
+    (nxr, nyr, nzr, fxr, fyr, fzr, onx, ony, onz, ofx, ofy, ofz,
+     ix3, iy3, iz3, fx3, fy3, fz3) = slab_setup32_flat(ox, oy, oz, bdx, bdy, bdz)
+    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
+    org = (onx, ony, onz, ofx, ofy, ofz)
+    inv = (ix3, iy3, iz3, fx3, fy3, fz3)
     t_lo = _f32(t_min, False)
     # The float64 near planes of the mip level's entry distance (_leaf_entry).
     rows64 = (0 if ix >= 0.0 else 12, 4 if iy >= 0.0 else 16, 8 if iz >= 0.0 else 20)

@@ -121,12 +121,16 @@ def slab_origins32(o, d):
     return near, far
 
 
-# A plain call, once per ray: inlined, its nested tuples broke Numba's array analysis
-# of the parallel (prange) drivers that inline the closest-hit kernels.
-@njit(cache=True)
-def slab_setup32(ox, oy, oz, dx, dy, dz):
-    """A ray's ``(rows, org, inv)`` for :func:`..kernels.simd.slab4` on 4-wide SoA nodes
-    (box row ``r`` at ``4 r``), the conservative float32 test of the module docstring.
+@njit(cache=True, inline="always")
+def slab_setup32_flat(ox, oy, oz, dx, dy, dz):
+    """A ray's ``rows + org + inv`` for :func:`..kernels.simd.slab4` on 4-wide SoA nodes
+    (box row ``r`` at ``4 r``) as one flat 18-tuple, the conservative float32 test of
+    the module docstring; callers group it into the three 6-tuples ``slab4`` takes.
+
+    Flat because it is inlined into the parallel (prange) drivers, once per ray
+    (as a call it was 9 % of the samples of an RBVH frame, dragons-7m: the call and
+    the reload of its returned tuple; inlined, the frame is 3-4 % faster), and Numba's array analysis of those drivers fails on an
+    inlined function that returns nested tuples.
 
     ``d`` must have its components under :data:`D_FLUSH` flushed to zero (a float32
     inverse of them would overflow).
@@ -136,16 +140,14 @@ def slab_setup32(ox, oy, oz, dx, dy, dz):
     nxr, fxr = (0, 12) if ix >= 0.0 else (12, 0)
     nyr, fyr = (4, 16) if iy >= 0.0 else (16, 4)
     nzr, fzr = (8, 20) if iz >= 0.0 else (20, 8)
-    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
     onx, ofx = slab_origins32(ox, dx)
     ony, ofy = slab_origins32(oy, dy)
     onz, ofz = slab_origins32(oz, dz)
-    org = (onx, ony, onz, ofx, ofy, ofz)
     # Far planes scaled by ROBUST32, so that the float32 rounding of 1 / d, of the
     # subtraction and of the product never puts the exit before the entry (Ize 2013).
-    inv = (np.float32(ix), np.float32(iy), np.float32(iz),
-           np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
-    return rows, org, inv
+    return (nxr, nyr, nzr, fxr, fyr, fzr, onx, ony, onz, ofx, ofy, ofz,
+            np.float32(ix), np.float32(iy), np.float32(iz),
+            np.float32(ix * ROBUST32), np.float32(iy * ROBUST32), np.float32(iz * ROBUST32))
 
 
 @njit(cache=True, inline="always")
@@ -191,7 +193,11 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
         dy = 0.0
     if abs(dz) < D_FLUSH:
         dz = 0.0
-    rows, org, inv = slab_setup32(ox, oy, oz, dx, dy, dz)
+    (nxr, nyr, nzr, fxr, fyr, fzr, onx, ony, onz, ofx, ofy, ofz,
+     ix3, iy3, iz3, fx3, fy3, fz3) = slab_setup32_flat(ox, oy, oz, dx, dy, dz)
+    rows = (nxr, nyr, nzr, fxr, fyr, fzr)
+    org = (onx, ony, onz, ofx, ofy, ofz)
+    inv = (ix3, iy3, iz3, fx3, fy3, fz3)
     t_lo = _f32(t_min, False)
     # Watertight test set-up: kz the dominant axis, shear onto it.
     ax_, ay_, az_ = abs(dx), abs(dy), abs(dz)
