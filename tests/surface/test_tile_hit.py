@@ -42,7 +42,10 @@ def _surface_gap(depth: np.ndarray, o, d, t):
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**31), st.integers(2, 9), st.booleans())
-@example(46033844, 7, False)  # a root 2.3e-7 past the oracle's, its gap 3.6e-8 (CI, 2026-12-05)
+# Found by this test: the heights' differences taken in float32 (the root 2.3e-7 past the
+# oracle's), and a ray dipping through a cell's patch and back (both ends above it: no sign change).
+@example(46033844, 7, False)
+@example(172, 4, False)
 def test_tile_hit_is_the_first_crossing_of_the_bilinear_surface(seed, r, holes):
     rng = np.random.default_rng(seed)
     depth = rng.uniform(0.0, 1.5, (r, r))
@@ -76,12 +79,8 @@ def test_tile_hit_is_the_first_crossing_of_the_bilinear_surface(seed, r, holes):
             b = m
     assert np.isfinite(t_hit), "the kernel missed a crossing the oracle finds"
     # A crossing within one grid step of the oracle's may be a tangent touch the grid did not resolve.
-    # The kernel's root may also lie a little past the oracle's (2.3e-7 in t for seed=46033844, r=7,
-    # a steep ray), but then only where the ray's height and the surface's differ by less than the
-    # float32 rounding of the stored heights (about 9e-8 at 1.5): a gap the tile itself cannot resolve.
-    gap = abs(_surface_gap(depth, o, d, np.array([t_hit]))[0])
-    assert abs(t_hit - a) < 1e-7 or t_hit < a or (t_hit - a < 1e-5 and gap < 1e-7), (t_hit, a, gap)
+    assert abs(t_hit - a) < 1e-7 or t_hit < a, (t_hit, a)
     if abs(t_hit - a) >= 1e-7:
-        assert gap < 1e-7
+        assert abs(_surface_gap(depth, o, d, np.array([t_hit]))[0]) < 1e-7
     p = o + t_hit * d
     assert abs(s - p[0]) < 1e-9 and abs(u - p[1]) < 1e-9

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ..kernels.ray import inverse, slab
@@ -69,29 +70,43 @@ def tile_normal(normal, o, r, s, t):
 
 
 @njit(cache=True, inline="always")
-def _patch_root(h00, h10, h01, h11, fs, ft, ds, du, dh, fa, ta, tb):
-    """The ``t`` in ``[ta, tb]`` where the ray meets a cell's bilinear patch, in closed form.
+def _patch_root(h00, h10, h01, h11, fs, ft, ds, du, dh, fa, fb, ta, tb):
+    """The first ``t`` in ``[ta, tb]`` where the ray meets a cell's bilinear patch, in
+    closed form; ``inf`` if it does not.
 
     Along the ray the patch height is a quadratic in ``t`` (bilinear in ``s`` and
     ``u``, each linear in ``t``), so ray height minus patch height is, from the
     bracket's start, ``f(ta + x) = fa + b x + a x^2`` with ``fs, ft`` the cell
-    fractions at ``ta`` and ``fa`` its known value there. It changes sign on the
-    bracket, so exactly one root lies inside; the numerically stable form of the
-    quadratic formula gives it with one square root and two divisions, where
-    regula falsi took four dependent steps (a division and a patch evaluation each)
-    and still left an error.
+    fractions at ``ta``, and ``fa``, ``fb`` its known values at the two ends. Where
+    they differ in sign one root lies inside; the numerically stable form of the
+    quadratic formula gives it with one square root and two divisions (regula falsi
+    took four dependent steps, a division and a patch evaluation each, and still
+    left an error). Where they agree the ray may still dip through the patch and
+    back within the cell (two roots, on a ridge or a fold the ray grazes): that is
+    the case when the parabola's vertex lies inside the bracket with the other
+    sign, and the first root is then the smaller one.
     """
     e = h11 - h10 - h01 + h00
     a = -e * ds * du
     b = dh - ((h10 - h00) * ds + (h01 - h00) * du + e * (fs * du + ft * ds))
     length = tb - ta
+    if (fa <= 0.0) == (fb <= 0.0):
+        if a == 0.0:
+            return math.inf  # linear along the ray: no sign change, no root
+        xv = -0.5 * b / a
+        if not 0.0 < xv < length or ((fa + xv * (b + a * xv)) <= 0.0) == (fa <= 0.0):
+            return math.inf
+        hi = xv  # two roots, one on each side of the vertex: the first lies in [0, xv]
+    else:
+        hi = length
     disc = max(b * b - 4.0 * a * fa, 0.0)
     q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
-    # Roots q / a and fa / q: the one in the bracket (the other lies outside it).
+    # Roots fa / q and q / a: the one in the bracket (the other lies outside it, or
+    # past the vertex).
     x = fa / q if q != 0.0 else 0.0
-    if not 0.0 <= x <= length and a != 0.0:
+    if not 0.0 <= x <= hi and a != 0.0:
         x = q / a
-    return ta + min(max(x, 0.0), length)
+    return ta + min(max(x, 0.0), hi)
 
 
 @njit(cache=True, inline="always")
@@ -160,10 +175,13 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tiles, tiles_i, depth):
         if t_exit < t:
             t_exit = t
         a0 = o + j * r + i
-        h00 = depth[a0]
-        h10 = depth[a0 + 1]
-        h01 = depth[a0 + r]
-        h11 = depth[a0 + r + 1]
+        # Heights as float64 (np.float64: Numba's float() keeps a float32 a float32):
+        # the patch's differences (its twist h11 - h10 - h01 + h00 above all) taken
+        # in float32 put the root up to ~2e-7 off in t.
+        h00 = np.float64(depth[a0])
+        h10 = np.float64(depth[a0 + 1])
+        h01 = np.float64(depth[a0 + r])
+        h11 = np.float64(depth[a0 + r + 1])
         if h00 > EMPTY_TEST and h10 > EMPTY_TEST and h01 > EMPTY_TEST and h11 > EMPTY_TEST:
             # Bilinear patches agree on a shared border, so the previous cell's
             # exit value is this cell's entry value.
@@ -172,8 +190,8 @@ def tile_hit(k, ox, oy, oz, dx, dy, dz, t_min, t_max, tiles, tiles_i, depth):
             else:
                 fa = h0 + t * dh - _bilerp(h00, h10, h01, h11, s0 + t * ds - i, u0 + t * du - j)
             fb = h0 + t_exit * dh - _bilerp(h00, h10, h01, h11, s0 + t_exit * ds - i, u0 + t_exit * du - j)
-            if (fa <= 0.0) != (fb <= 0.0):
-                th = _patch_root(h00, h10, h01, h11, s0 + t * ds - i, u0 + t * du - j, ds, du, dh, fa, t, t_exit)
+            th = _patch_root(h00, h10, h01, h11, s0 + t * ds - i, u0 + t * du - j, ds, du, dh, fa, fb, t, t_exit)
+            if th <= t_exit:
                 return th, s0 + th * ds, u0 + th * du
             f_in = fb
             have_f_in = True
