@@ -8,7 +8,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sparsecast.kernels.ray import BOX_ROWS, clip_box, clip_box_list, clip_lattice, inverse, lattice_range
+from sparsecast.kernels.ray import (BOX_ROWS, clip_box, clip_box_list, clip_lattice, compact_spans, inverse,
+                                    lattice_range)
 
 
 def _brute(o, d, lo, hi, open_lo, open_hi, dt, k_max=400):
@@ -90,3 +91,20 @@ def test_clip_box_list_equals_clip_box_bit_for_bit(seed, count, sx, sy, sz):
         want = _widened(o, d, lo[:, i], hi[:, i], pad, t_lo, t_hi)
         assert (out[0, i], out[1, i]) == want, i
     assert np.isnan(out[:, count:]).all()  # only the first `count` columns are written
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(0, 40))
+def test_compact_spans_keeps_the_non_empty_intervals_in_order(seed, count):
+    # Empty (t0 > t1), touching (t0 == t1) and NaN intervals (a NaN compares false:
+    # dropped, as the scan that read the list before dropped it), and columns past `count`.
+    rng = np.random.default_rng(seed)
+    spans = rng.uniform(0, 10, (2, count + 3))
+    spans[1, : count // 3] = spans[0, : count // 3]
+    if count:
+        spans[0, rng.integers(0, count)] = np.nan
+    want = [(a, b) for a, b in zip(spans[0, :count], spans[1, :count]) if a <= b]
+    tail = spans[:, count:].copy()
+    m = compact_spans(spans, count)
+    assert m == len(want)
+    assert [(spans[0, i], spans[1, i]) for i in range(m)] == want
+    assert np.array_equal(spans[:, count:], tail)  # nothing past `count` is touched

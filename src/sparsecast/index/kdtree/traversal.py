@@ -27,8 +27,9 @@ direction (then every ray of the tile does), else the eye's side (perspective:
 the tile's rays share one eye). :func:`start_tile` also copies the listed boxes
 into rows, and each ray clips the whole list at once in ``start_ray``
 (:func:`~sparsecast.kernels.ray.clip_box_list`, a loop LLVM vectorises, with the
-floats of :func:`_box_interval`); ``next_interval`` then only skips the empty
-intervals. A ray parallel to an axis clips box by box (``clip_box``'s explicit
+floats of :func:`_box_interval`) and moves the intervals it meets to the front in
+list order (:func:`~sparsecast.kernels.ray.compact_spans`, branch-free);
+``next_interval`` then reads them one after the other. A ray parallel to an axis clips box by box (``clip_box``'s explicit
 path for ``d == 0``).
 
 Clip culling. Every sample the driver takes lies in the frame's clip box and on the
@@ -49,7 +50,7 @@ from numba import njit
 from numba.extending import overload
 
 from ...kernels.borrow import NO_REFCOUNT
-from ...kernels.ray import BOX_ROWS, clip_box, clip_box_list, inverse, slab
+from ...kernels.ray import BOX_ROWS, clip_box, clip_box_list, compact_spans, inverse, slab
 from ..interval import make_scratch, next_interval, record_class, start_ray, start_tile
 
 __all__ = ["KdListRecord", "KdStackRecord", "EPS", "TILE_LEAVES", "FRUSTUM_TOL", "widen", "next_listed_leaf"]
@@ -331,6 +332,7 @@ def _start(record, scratch, ray, t_lo, t_hi):
             iz, fz = inverse(dz)
             listed = ints[0]
             sp = -1
+            hits = 0
             if listed < 0:
                 sp = 0
                 if record.node_axis.shape[0] > 0:
@@ -341,7 +343,8 @@ def _start(record, scratch, ray, t_lo, t_hi):
             else:
                 clip_box_list(scratch[1], listed, ox, oy, oz, ix, iy, iz, widening(t_lo, t_hi), t_lo, t_hi,
                               scratch[2])
-            return (0, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                hits = compact_spans(scratch[2], listed)  # the leaves the ray meets, in list order
+            return (0, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
 
         return impl
 
@@ -380,7 +383,7 @@ def _next(record, scratch, ray, state, t_covered):
             # A child is pushed only when the ray's widened interval meets it,
             # the near child last (popped first): the left child when the ray's
             # direction on the split axis is >= 0.
-            j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz = state
+            j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits = state
             inv = (ix, iy, iz, fx, fy, fz)
             _, _, _, dx, dy, dz = ray
             lo = record.node_lo
@@ -389,14 +392,11 @@ def _next(record, scratch, ray, state, t_covered):
             spans = scratch[2]
             count = ints[0]
             if sp == -1:
-                # The tile's leaf list, in its visibility order, clipped by start_ray.
-                while j < count:
-                    t0 = spans[0, j]
-                    t1 = spans[1, j]
-                    j += 1
-                    if t0 <= t1:
-                        return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
-                return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                # The leaves of the tile's list that the ray meets, in the list's
+                # visibility order: clipped and compacted by start_ray.
+                if j < hits:
+                    return spans[0, j], spans[1, j], (j + 1, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
+                return math.inf, -math.inf, state
             if sp < 0:
                 # The same list box by box (a ray parallel to an axis).
                 while j < count:
@@ -405,8 +405,8 @@ def _next(record, scratch, ray, state, t_covered):
                     t0, t1 = _box_interval(ray, inv, lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2],
                                            t_lo, t_hi)
                     if t0 <= t1:
-                        return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
-                return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                        return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
+                return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
             base = 1 + record.tile_leaves
             while sp > 0:
                 sp -= 1
@@ -417,11 +417,11 @@ def _next(record, scratch, ray, state, t_covered):
                     continue
                 ax = record.node_axis[n]
                 if ax < 0:
-                    return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+                    return t0, t1, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
                 c = record.node_child[n]
                 d = dx if ax == 0 else (dy if ax == 1 else dz)
                 _push_children(ints, base + sp, c, d >= 0.0)
                 sp += 2
-            return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz)
+            return math.inf, -math.inf, (j, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
 
         return impl_stack
