@@ -29,8 +29,8 @@ into rows, and each ray clips the whole list at once in ``start_ray``
 (:func:`~sparsecast.kernels.ray.clip_box_list`, a loop LLVM vectorises, with the
 floats of :func:`_box_interval`) and moves the intervals it meets to the front in
 list order (:func:`~sparsecast.kernels.ray.compact_spans`, branch-free);
-``next_interval`` then reads them one after the other. A ray parallel to an axis clips box by box (``clip_box``'s explicit
-path for ``d == 0``).
+``next_interval`` then reads them one after the other. A ray parallel to an axis
+clips box by box (``clip_box``'s explicit path for ``d == 0``).
 
 Clip culling. Every sample the driver takes lies in the frame's clip box and on the
 kept side of its clip planes (up to the rounding of one ray position), and a sample
@@ -389,15 +389,15 @@ def _next(record, scratch, ray, state, t_covered):
             lo = record.node_lo
             hi = record.node_hi
             ints = scratch[0]  # indexed, not unpacked: see _start
-            spans = scratch[2]
-            count = ints[0]
             if sp == -1:
                 # The leaves of the tile's list that the ray meets, in the list's
                 # visibility order: clipped and compacted by start_ray.
                 if j < hits:
+                    spans = scratch[2]
                     return spans[0, j], spans[1, j], (j + 1, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits)
                 return math.inf, -math.inf, state
             if sp < 0:
+                count = ints[0]
                 # The same list box by box (a ray parallel to an axis).
                 while j < count:
                     n = ints[1 + j]
