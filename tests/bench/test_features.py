@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from sparsecast.bench import features
 
@@ -15,7 +16,8 @@ def test_features_section_records_every_case_and_variant():
     cases = {(r["case"], r["variant"]) for r in renders}
     assert cases == {("labels", "all"), ("labels", "half"), ("clip", "unclipped"), ("clip", "half-box"),
                      ("clip", "half-plane"),
-                     ("iso", "naive")} | {("iso", i) for i in features.ISO_INDICES}
+                     ("iso", "naive")} | {("iso", i) for i in features.ISO_INDICES} \
+        | {("shading", "shaded"), ("shading", "unshaded")}
     for r in renders:
         assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"]
         assert r["max_abs_diff"] <= 1e-5, r  # every variant is exact against naive
@@ -27,6 +29,18 @@ def test_features_section_records_every_case_and_variant():
     assert by["clip", "half-plane"]["samples"] < by["clip", "unclipped"]["samples"]
     assert all(by["iso", i]["samples"] < by["iso", "naive"]["samples"] for i in features.ISO_INDICES)
     assert {r["variant"] for r in recs if r.get("phase") == "rebuild"} == {"all", "half"}
+    # Shading: each index with the benchmark TF, naive with the dense one; both variants
+    # take the same samples (shading changes colours, not where samples are taken), and
+    # the unshaded row carries shaded / unshaded ms.
+    shading = {}
+    for r in renders:
+        if r["case"] == "shading":
+            shading.setdefault((r["tf"], r["method"]), {})[r["variant"]] = r
+    assert set(shading) == {("default", i) for i in features.SHADING_INDICES} | {("dense", "naive")}
+    for pair in shading.values():
+        assert pair["shaded"]["samples"] == pair["unshaded"]["samples"] > 0
+        assert pair["shaded"]["speedup"] == 1.0
+        assert pair["unshaded"]["speedup"] == pytest.approx(pair["shaded"]["ms"] / pair["unshaded"]["ms"])
 
 
 def test_label_scene_is_a_segmentation():

@@ -1,6 +1,6 @@
-"""Benchmark section ``features``: what hiding labels, clipping and isosurfaces cost.
+"""Benchmark section ``features``: what hiding labels, clipping, isosurfaces and shading cost.
 
-Three cases, each timed in interleaved rounds (:func:`.timing.interleaved`: every
+Four cases, each timed in interleaved rounds (:func:`.timing.interleaved`: every
 variant renders one frame per round, in turn, after a warm-up round) with the same
 index, camera and image, and each variant's image compared with naive's (the
 ``max_abs_diff`` of an exact method is at most 1e-5):
@@ -15,6 +15,11 @@ index, camera and image, and each variant's image compared with naive's (the
   ``speedup`` = unclipped / clipped.
 - ``iso``: the same volumes, an isosurface at 35 % of the value range; ``naive`` vs
   the exact indices (``kdtree-deep``, ``grid-pc``, ``lbvh``); ``speedup`` = naive / ESS.
+- ``shading``: the same volumes, DVR ``shaded`` (Blinn-Phong on the central-difference
+  gradient, :data:`~sparsecast.render.options.DEFAULT_SHADING`) vs ``unshaded``, with
+  the benchmark TF (``tf="default"``) for each of :data:`SHADING_INDICES` and with a TF
+  that leaves nothing empty (``tf="dense"``: every sample classified and shaded) for
+  naive; ``speedup`` on the ``unshaded`` row = shaded / unshaded, the cost of shading.
 
 Records: ``phase="render"``, ``case``, ``variant``, the timing fields of
 :meth:`.timing.Runs.fields` (median, raw runs, min/max, MAD, CPU ms, cores busy),
@@ -32,15 +37,18 @@ from ..index import build_index
 from ..render import render
 from ..transfer import TransferFunction
 from ..volume import Volume
-from .catalog import DATASETS
+from .catalog import DATASETS, dense_tf
 from .timing import interleaved
 
-__all__ = ["run", "CT_MR", "ISO_INDICES", "label_scene"]
+__all__ = ["run", "CT_MR", "ISO_INDICES", "SHADING_INDICES", "label_scene"]
 
 #: the shared CT / MR volumes of the clip and iso cases (skipped when absent)
 CT_MR = ("bonsai", "tooth", "avm-cta", "chest-ct", "headsq", "mni152")
 #: the exact indices the iso case times against naive
 ISO_INDICES = ("kdtree-deep", "grid-pc", "lbvh")
+#: the indices the shading case times shaded vs unshaded with the benchmark TF (the
+#: dense TF: naive alone, which every index matches there)
+SHADING_INDICES = ("naive", "kdtree-deep")
 VIEW = (30.0, 20.0)
 #: the clip case's plane keeps the side this normal points to (away from the camera's side)
 PLANE_NORMAL = (-1.0, 0.35, 0.2)
@@ -62,8 +70,8 @@ def label_scene(n: int = 160, labels: int = 16, seed: int = 7) -> tuple[Volume, 
 
 def run(datasets: list[str] | None, *, width: int, height: int, repeat: int, warmup: int,
         record: Callable[..., None], label_size: int = 160) -> None:
-    """Measure the three cases (see the module docstring); ``datasets`` replaces
-    :data:`CT_MR` for the clip and iso cases, ``label_size`` the segmentation's edge."""
+    """Measure the four cases (see the module docstring); ``datasets`` replaces
+    :data:`CT_MR` for the clip, iso and shading cases, ``label_size`` the segmentation's edge."""
     _labels(width, height, repeat, warmup, record, label_size)
     for name in CT_MR if datasets is None else datasets:
         ds = DATASETS.get(name)
@@ -74,6 +82,7 @@ def run(datasets: list[str] | None, *, width: int, height: int, repeat: int, war
         tf = ds.make_tf(vol)
         _clip(name, vol, tf, width, height, repeat, warmup, record)
         _iso(name, vol, tf, width, height, repeat, warmup, record)
+        _shading(name, vol, tf, width, height, repeat, warmup, record)
 
 
 def _frames(variants: dict[str, Callable], repeat: int, warmup: int):
@@ -137,3 +146,21 @@ def _iso(name, vol, tf, width, height, repeat, warmup, record) -> None:
     ref = runs["naive"].result.rgba
     _emit(record, dict(dataset=name, case="iso", iso=iso, width=width, height=height), runs,
           {k: ref for k in variants}, "naive")
+
+
+def _shading(name, vol, tf, width, height, repeat, warmup, record) -> None:
+    cam = Camera.orbit(vol, *VIEW)
+    cases = [("default", tf, index) for index in SHADING_INDICES] + [("dense", dense_tf(vol), "naive")]
+    for tf_name, t, index in cases:
+        idx = build_index(vol, t, index)
+        variants = {k: (lambda on=on: render(vol, t, cam, width, height, index=idx, shading=on))
+                    for k, on in (("shaded", True), ("unshaded", False))}
+        runs = _frames(variants, repeat, warmup)
+        if index == "naive":
+            reference = {k: r.result.rgba for k, r in runs.items()}
+        else:
+            reference = {k: render(vol, t, cam, width, height, index="naive", shading=k == "shaded").rgba
+                         for k in variants}
+        # Base "shaded": the unshaded row's speed-up is shaded / unshaded ms, what shading costs.
+        _emit(record, dict(dataset=name, case="shading", tf=tf_name, width=width, height=height), runs,
+              reference, "shaded")

@@ -124,17 +124,19 @@ def format_features(records: list[dict[str, Any]]):
     rows = [r for r in records if r.get("section") == "features" and r.get("phase") == "render"]
     if not rows:
         return None
-    table = Table(title="sparsecast bench: labels, clipping, isosurfaces (interleaved rounds per case)")
+    table = Table(title="sparsecast bench: labels, clipping, isosurfaces, shading (interleaved rounds per case)")
     for col in ("dataset", "case", "variant", "index", "size", "ms (median)", "min-max", "cores busy",
                 "M samples", "speed-up", "max |diff| vs naive"):
         table.add_column(col, justify="left" if col in ("dataset", "case", "variant", "index", "size") else "right")
     for r in rows:
-        table.add_row(str(r.get("dataset")), str(r.get("case")), str(r.get("variant")), str(r.get("method")),
+        case = str(r.get("case")) + (f" ({r['tf']} TF)" if r.get("tf") else "")
+        table.add_row(str(r.get("dataset")), case, str(r.get("variant")), str(r.get("method")),
                       f"{r.get('width')}x{r.get('height')}", _fmt(r.get("ms"), ".1f"),
                       f"{_fmt(r.get('ms_min'), '.1f')}-{_fmt(r.get('ms_max'), '.1f')}",
                       _fmt(r.get("cores_busy"), ".2f"), _fmt((r.get("samples") or 0) / 1e6, ".2f"),
                       _fmt(r.get("speedup"), ".2f"), _fmt(r.get("max_abs_diff"), ".1e"))
-    table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box, iso naive / index; "
+    table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box, iso naive / index, "
+                     "shading shaded / unshaded (on the unshaded row: what shading costs); "
                      "ratios of medians within one interleaved run")
     return table
 
