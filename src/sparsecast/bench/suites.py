@@ -198,8 +198,8 @@ SUITES: dict[str, Suite] = {
         Suite("surface", "the RBVH section only (approximate surface ray casting)", short="RBVH section",
               duration="2 min", datasets=(), irt=False, sections=("surface",)),
         Suite("features", "labels hidden vs shown, a half clip box, isosurfaces naive vs ESS, shaded vs "
-              "unshaded DVR, on the shared CT/MR volumes (bench.features)", short="features section", duration="7 min", datasets=(), irt=False,
-              sections=("features",)),
+              "unshaded DVR, on the shared CT/MR volumes (bench.features)", short="features section",
+              duration="7 min", datasets=(), irt=False, sections=("features",)),
         Suite("distributed", "rendering on a Dask LocalCluster of 2 one-thread workers: a 512^3 float32 field "
               "cut into 1, 2 and 4 pieces against one process, interleaved: frame and TF-change latency, bytes "
               "moved, compositing ms vs image size, a model of N machines (bench.distributed)",
