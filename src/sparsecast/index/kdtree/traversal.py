@@ -180,14 +180,27 @@ def _far_corner(nx, ny, nz, lo, hi, n):
 
 
 @njit(cache=True, inline="always")
-def _outside(pl, lo, hi, n):
-    """Whether box ``n`` lies wholly outside the plane ``pl`` (by more than its tolerance)."""
+def _absolute(pl, reach):
+    """Plane ``pl`` of :func:`_plane` with its tolerance made absolute for boxes whose
+    coordinates are at most ``reach - 1`` in magnitude: ``(nx, ny, nz, c)``, a box lying
+    wholly outside when its far corner ``b`` has ``n . b < c`` (no plane: ``c = -inf``)."""
     nx, ny, nz, px, py, pz, tol = pl
     if tol == 0.0:
-        return False
+        return nx, ny, nz, -math.inf
+    return nx, ny, nz, (nx * px + ny * py + nz * pz) - tol * reach
+
+
+@njit(cache=True, inline="always")
+def _outside(pl, lo, hi, n):
+    """Whether box ``n`` lies wholly outside the plane ``pl`` of :func:`_absolute`.
+
+    The tolerance is the one for the tree's root box, at least each node's own (its
+    coordinates are within the root's), so a node is dropped only when it lies outside by
+    more than :data:`FRUSTUM_TOL` of its coordinates: one product per axis and a compare
+    per node instead of that bound taken again at every node."""
+    nx, ny, nz, c = pl
     bx, by, bz = _far_corner(nx, ny, nz, lo, hi, n)
-    reach = 1.0 + max(abs(bx), abs(by), abs(bz))
-    return nx * (bx - px) + ny * (by - py) + nz * (bz - pz) < -tol * reach
+    return nx * bx + ny * by + nz * bz < c
 
 
 @njit(cache=True, inline="always")
@@ -259,13 +272,20 @@ def _tile(record, scratch, corners, box, planes):
             return False  # an empty tree: no ray meets a leaf
         if cap == 0:
             return True
-        p0 = _plane(corners, 0)
-        p1 = _plane(corners, 1)
-        p2 = _plane(corners, 2)
-        p3 = _plane(corners, 3)
+        # Node 0 is the root: every node's box lies within its box.
+        reach = 1.0 + max(abs(lo[0, 0]), abs(lo[0, 1]), abs(lo[0, 2]), abs(hi[0, 0]), abs(hi[0, 1]), abs(hi[0, 2]))
+        p0 = _absolute(_plane(corners, 0), reach)
+        p1 = _absolute(_plane(corners, 1), reach)
+        p2 = _absolute(_plane(corners, 2), reach)
+        p3 = _absolute(_plane(corners, 3), reach)
         eye = corners[0]
         x0, y0, z0, x1, y1, z1 = box
         ctol = FRUSTUM_TOL * (1.0 + max(abs(x0), abs(y0), abs(z0), abs(x1), abs(y1), abs(z1)))
+        # No clip test per node where it cannot drop one: no planes, and the clip box
+        # holds the root's box (an unclipped frame; the nodes lie within the root's).
+        clipping = planes.shape[0] > 0 or not (
+            lo[0, 0] >= x0 - ctol and lo[0, 1] >= y0 - ctol and lo[0, 2] >= z0 - ctol
+            and hi[0, 0] <= x1 + ctol and hi[0, 1] <= y1 + ctol and hi[0, 2] <= z1 + ctol)
         base = 1 + cap  # the stack, as offsets into scratch (no slice: a view per call)
         ints[base] = 0
         sp = 1
@@ -274,7 +294,7 @@ def _tile(record, scratch, corners, box, planes):
             sp -= 1
             n = ints[base + sp]
             if _outside(p0, lo, hi, n) or _outside(p1, lo, hi, n) or _outside(p2, lo, hi, n) \
-                    or _outside(p3, lo, hi, n) or _outside_clip(box, planes, ctol, lo, hi, n):
+                    or _outside(p3, lo, hi, n) or (clipping and _outside_clip(box, planes, ctol, lo, hi, n)):
                 continue
             ax = axis[n]
             if ax < 0:
