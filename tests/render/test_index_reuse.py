@@ -63,9 +63,9 @@ def test_a_change_of_emptiness_rebuilds(vol):
     img = sc.render(vol, dense, cam, 32, 28, index="kdtree-deep")
     assert not img.stats["index_reused"]
     assert np.abs(img.rgba - _naive(vol, dense, cam).rgba).max() <= ATOL
-    # and back: the sparse TF's index was replaced by the dense one's, which is rebuilt
+    # and back: the sparse TF's index is kept beside the dense one's (a few per volume)
     again = sc.render(vol, sparse, cam, 32, 28, index="kdtree-deep")
-    assert not again.stats["index_reused"]
+    assert again.stats["index_reused"]
     assert np.abs(again.rgba - _naive(vol, sparse, cam).rgba).max() <= ATOL
 
 
@@ -78,6 +78,21 @@ def test_iso_frames_reuse_the_index_of_their_isovalue_only(vol):
     assert not first.stats["index_reused"] and same.stats["index_reused"] and not moved.stats["index_reused"]
     ref = _naive(vol, tf, cam, mode="iso", iso=0.6)
     assert np.abs(moved.rgba - ref.rgba).max() <= ATOL
+
+
+def test_alternating_iso_and_dvr_frames_keep_both_indices(vol):
+    """Isosurface frames classify with their own TF (non-zero only at the isovalue): its
+    index and the DVR TF's are kept side by side, so toggling the mode builds nothing."""
+    cam = sc.Camera.orbit(vol, 30, 20)
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.3)
+    modes = ({"mode": "iso", "iso": 0.4}, {})
+    for kw in modes:
+        assert not sc.render(vol, tf, cam, 16, 16, index="kdtree-deep", **kw).stats["index_reused"]
+    for _ in range(2):
+        for kw in modes:
+            img = sc.render(vol, tf, cam, 16, 16, index="kdtree-deep", **kw)
+            assert img.stats["index_reused"] and img.stats["build_ms"] == 0.0, kw
+            assert np.abs(img.rgba - sc.render(vol, tf, cam, 16, 16, index="naive", **kw).rgba).max() <= ATOL
 
 
 def test_other_options_spacing_and_approximate_indices_build_anew(vol):

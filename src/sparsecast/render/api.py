@@ -72,8 +72,9 @@ def render(
         (built on the fly; its build time appears in ``stats["build_ms"]``), or a
         prebuilt index for this volume and TF, which is reused. An exact index built
         from a name is kept with the volume and serves the next frames while the TF
-        leaves the same space empty (a camera path, a colour edit:
-        ``stats["index_reused"]``, ``build_ms`` 0); see :mod:`sparsecast.render.reuse`.
+        leaves the same space empty (a camera path, a colour edit, a toggle between
+        isosurface and DVR frames: ``stats["index_reused"]``, ``build_ms`` 0); see
+        :mod:`sparsecast.render.reuse`.
     ert : float
         Early ray termination once accumulated opacity reaches this, in (0, 1];
         1.0 turns it off.
