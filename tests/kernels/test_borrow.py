@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.core.caching import NullCache
 
 import sparsecast as sc
 from sparsecast.kernels.borrow import borrowed
@@ -91,7 +92,7 @@ def _counting_calls(dispatcher, sig, options=None) -> list[str]:
     them. A dispatcher without the disk cache is read as it was compiled in this
     process; a cached one is compiled again uncached with the same options, updated
     by ``options`` (a copy loaded from the disk cache keeps no assembly)."""
-    if options is None and type(dispatcher._cache).__name__ == "NullCache":
+    if options is None and isinstance(dispatcher._cache, NullCache):
         fresh = dispatcher  # compiled here, its assembly kept: no second driver compile
     else:
         opts = {k: v for k, v in dispatcher.targetoptions.items() if k not in ("cache", "nopython")} | (options or {})
