@@ -15,7 +15,7 @@ from typing import overload
 
 import numpy as np
 
-from ._util.checks import as_int
+from ._util.checks import as_int, one_of
 from .errors import ParameterError, VolumeDataError
 from .volume import Volume
 
@@ -61,14 +61,16 @@ class VolumeSeries(Sequence):
 
     @classmethod
     def from_array(cls, data, spacing=1.0, origin=0.0, *, name: str = "series",
-                   cache_bytes: int = DEFAULT_CACHE_BYTES) -> "VolumeSeries":
+                   cache_bytes: int = DEFAULT_CACHE_BYTES, nonfinite: str = "raise") -> "VolumeSeries":
         """A series from a ``(t, nz, ny, nx)`` array (NumPy, memory-mapped or any array
-        that slices lazily): step ``t`` is ``Volume(data[t])``."""
+        that slices lazily): step ``t`` is ``Volume(data[t], nonfinite=nonfinite)``."""
         shape = getattr(data, "shape", None)
         if shape is None or len(shape) != 4 or min(shape) == 0:
             raise VolumeDataError(f"{name}: expected a 4-D array (t, nz, ny, nx) with no empty axis, "
                                   f"got shape {shape}")
-        loaders = [lambda t=t: Volume(np.asarray(data[t]), spacing, origin, name=f"{name}[t={t}]")
+        one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
+        loaders = [lambda t=t: Volume(np.asarray(data[t]), spacing, origin, name=f"{name}[t={t}]",
+                                      nonfinite=nonfinite)
                    for t in range(shape[0])]
         return cls(loaders, [f"t={t}" for t in range(shape[0])], cache_bytes=cache_bytes, name=name)
 

@@ -509,7 +509,8 @@ def _check_finite(arr: np.ndarray, name: str, policy: str) -> tuple[np.ndarray, 
     if policy == "raise":
         raise VolumeDataError(
             f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
-            f"(pass nonfinite='replace' to substitute the finite min/max)"
+            f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
+            f"min/max)"
         )
     if not finite.any():
         raise VolumeDataError(f"{name}: every voxel is NaN or Inf; nothing to replace them with")

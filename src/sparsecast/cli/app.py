@@ -22,7 +22,7 @@ from ..errors import SparsecastError
 __all__ = [
     "app", "main", "out", "err", "warn", "error", "plain_console",
     "FileArg", "TfOpt", "TfRangeOpt", "ThresholdOpt", "DimsOpt", "DtypeOpt", "SpacingOpt", "CellOpt",
-    "AllowOutsideOpt", "OrientationOpt", "ViewOpt",
+    "AllowOutsideOpt", "OrientationOpt", "ViewOpt", "NonFiniteOpt",
     "AzimuthOpt", "ElevationOpt", "ProjectionOpt", "ZoomOpt", "SizeOpt", "OutputOpt", "UpOpt",
 ]
 
@@ -74,6 +74,10 @@ SpacingOpt = Annotated[Optional[str], typer.Option(help="Override voxel spacing 
 AllowOutsideOpt = Annotated[bool, typer.Option(
     "--allow-outside-data",
     help="NRRD: read a detached header's data file even when it lies outside the header's folder.")]
+NonFiniteOpt = Annotated[Optional[str], typer.Option(
+    "--nonfinite",
+    help="NaN or Inf voxels (float data): 'raise' (the default: an error that names the file and counts them) or "
+         "'replace' (NaN and -Inf by the finite minimum, +Inf by the finite maximum).")]
 LazyOpt = Annotated[Optional[bool], typer.Option(
     "--lazy/--no-lazy",
     help="Keep the volume as bricks read from the file on demand (Zarr, HDF5, .npy, raw, raw NRRD). Default: "

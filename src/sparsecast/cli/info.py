@@ -12,7 +12,7 @@ from rich.text import Text
 from ..kernel_cache import compile_note, compile_seconds
 from ..storage import BrickedVolume
 from .app import (
-    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, SpacingOpt, TfOpt,
+    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, app, out,
 )
 from .inputs import load_input, make_tf
@@ -34,6 +34,7 @@ def info(
     lazy: LazyOpt = None,
     memory_limit: MemoryLimitOpt = None,
     level: LevelOpt = None,
+    nonfinite: NonFiniteOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
     presets: Annotated[bool, typer.Option("--presets", help="List TF presets and exit.")] = False,
     indices: Annotated[bool, typer.Option("--indices", help="List spatial indices and exit.")] = False,
@@ -56,7 +57,7 @@ def info(
             out.print(f"  {name:<15} {listed}")
         return
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation, lazy=lazy,
-                     memory_limit=memory_limit, level=level)
+                     memory_limit=memory_limit, level=level, nonfinite=nonfinite)
     tfn = make_tf(tf, vol, tf_range, threshold)
     lo, hi = vol.value_range
     c0 = compile_seconds()

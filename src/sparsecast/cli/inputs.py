@@ -10,12 +10,20 @@ from typing import Optional
 from ..errors import ParameterError
 from .parse import parse_dims, parse_pair, parse_spacing
 
-__all__ = ["load_input", "make_tf", "orbit_frame", "orbit_angles"]
+__all__ = ["load_input", "make_tf", "nonfinite_policy", "orbit_frame", "orbit_angles"]
+
+
+def nonfinite_policy(value: str) -> str:
+    """``--nonfinite``'s value, checked under the option's own name (``raise`` or ``replace``)."""
+    from .._util.checks import one_of
+
+    return one_of(value, "--nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
 
 
 def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], spacing: Optional[str],
                allow_outside: bool = False, orientation: Optional[str] = None, *, lazy: Optional[bool] = None,
-               memory_limit: Optional[str] = None, level: Optional[str] = None):
+               memory_limit: Optional[str] = None, level: Optional[str] = None,
+               nonfinite: Optional[str] = None):
     """The volume in ``file`` (raw layout and spacing from the options), or the built-in
     demo when no file is given.
 
@@ -24,6 +32,7 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
     ``orientation`` (``--orientation``) sets the axis codes, e.g. for a file that lost them.
     ``lazy``, ``memory_limit`` and ``level`` (``--lazy``, ``--memory-limit``, ``--level``) are
     :func:`~sparsecast.io.load_volume`'s: bricks read on demand, their budget, an OME-Zarr level.
+    ``nonfinite`` (``--nonfinite``): ``"raise"`` (the default) or ``"replace"`` NaN/Inf voxels.
     """
     from ..datasets import demo_volume
     from ..io import load_volume
@@ -31,7 +40,7 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
     if file is None:
         given = [opt for opt, v in (("--dims", dims), ("--dtype", dtype), ("--spacing", spacing),
                                     ("--orientation", orientation), ("--lazy", lazy), ("--memory-limit", memory_limit),
-                                    ("--level", level)) if v]
+                                    ("--level", level), ("--nonfinite", nonfinite)) if v]
         if given:  # silently ignoring them would render the demo as if they applied
             raise ParameterError(
                 f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
@@ -55,6 +64,8 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
         kw["memory_limit"] = memory_limit
     if level is not None:
         kw["level"] = int(level) if level.isdigit() else level
+    if nonfinite is not None:
+        kw["nonfinite"] = nonfinite_policy(nonfinite)
     return load_volume(file, allow_outside=allow_outside, **kw)
 
 

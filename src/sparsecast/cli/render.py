@@ -13,7 +13,7 @@ from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
-    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, OutputOpt,
+    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, OutputOpt,
     PiecesOpt, ProjectionOpt, SchedulerOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
@@ -80,6 +80,7 @@ def render(
     lazy: LazyOpt = None,
     memory_limit: MemoryLimitOpt = None,
     level: LevelOpt = None,
+    nonfinite: NonFiniteOpt = None,
     allow_outside_data: AllowOutsideOpt = False,
     scheduler: SchedulerOpt = None,
     pieces: PiecesOpt = None,
@@ -130,11 +131,12 @@ def render(
                                      background=parse_background(background), clip_box=box, clip_planes=planes,
                                      clip_cap=clip_cap, mode=mode, iso=iso or None, **cluster, **index_options),
                       smooth_labels=smooth_labels,
-                      load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
+                      load_kw=dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation,
+                                   nonfinite=nonfinite))
         return
     c0 = compile_seconds()
     vol = load_input(file, dims, dtype, spacing, allow_outside_data, orientation, lazy=lazy,
-                     memory_limit=memory_limit, level=level)
+                     memory_limit=memory_limit, level=level, nonfinite=nonfinite)
     frame = orbit_frame(vol, file, up, view)
     tfn = smoothed_labels(make_tf(tf, vol, tf_range, threshold), tf, smooth_labels)
     if tfn.is_transparent:

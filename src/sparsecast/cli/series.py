@@ -15,7 +15,7 @@ from .._util.atomic import check_output
 from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from .app import err, out, warn
-from .inputs import make_tf, orbit_angles, orbit_frame, smoothed_labels
+from .inputs import make_tf, nonfinite_policy, orbit_angles, orbit_frame, smoothed_labels
 from .parse import parse_dims, parse_spacing
 
 __all__ = ["render_series", "frame_paths", "open_series"]
@@ -23,7 +23,8 @@ __all__ = ["render_series", "frame_paths", "open_series"]
 
 def open_series(file: Path, load_kw: dict[str, Any]):
     """The series ``file`` names (a folder, a glob or a 4-D .npy) with the raw-file and
-    grid options of ``load_kw`` (``dims``, ``dtype``, ``spacing``, ``orientation``)."""
+    grid options of ``load_kw`` (``dims``, ``dtype``, ``spacing``, ``orientation``) and its
+    NaN/Inf policy (``nonfinite``, for every step)."""
     from ..io import load_series
 
     kw = {}
@@ -33,6 +34,8 @@ def open_series(file: Path, load_kw: dict[str, Any]):
         kw["dtype"] = load_kw["dtype"]
     if load_kw.get("orientation"):
         kw["orientation"] = load_kw["orientation"]
+    if load_kw.get("nonfinite"):
+        kw["nonfinite"] = nonfinite_policy(load_kw["nonfinite"])
     spacing = parse_spacing(load_kw["spacing"]) if load_kw.get("spacing") else None
     return load_series(str(file), spacing=spacing, **kw)
 

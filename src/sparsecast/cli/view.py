@@ -9,7 +9,7 @@ import typer
 from .._util.checks import as_int
 from ..errors import ParameterError
 from .app import (
-    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, OrientationOpt, PiecesOpt, SchedulerOpt,
+    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, PiecesOpt, SchedulerOpt,
     SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
@@ -45,6 +45,7 @@ def view(
     lazy: LazyOpt = None,
     memory_limit: MemoryLimitOpt = None,
     level: LevelOpt = None,
+    nonfinite: NonFiniteOpt = None,
     scheduler: SchedulerOpt = None,
     pieces: PiecesOpt = None,
 ) -> None:
@@ -78,11 +79,12 @@ def view(
             raise ParameterError("--time: give the series as FILE (a folder, a quoted glob or a 4-D .npy)")
         from .series import open_series
 
-        series = open_series(file, dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation))
+        series = open_series(file, dict(dims=dims, dtype=dtype, spacing=spacing, orientation=orientation,
+                                        nonfinite=nonfinite))
         vol = series[series.step(time_step)]
     else:
         vol = load_input(file, dims, dtype, spacing, orientation=orientation, lazy=lazy, memory_limit=memory_limit,
-                         level=level)
+                         level=level, nonfinite=nonfinite)
     frame = orbit_frame(vol, file, up, view)
     # A series: one TF over the range of every step unless --tf-range fixes it.
     default_range = series.value_range if series is not None and not tf_range else None

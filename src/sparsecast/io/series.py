@@ -52,7 +52,8 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
     if isinstance(source, np.ndarray) or (hasattr(source, "shape") and hasattr(source, "__getitem__")
                                           and not isinstance(source, (str, os.PathLike))):
         return VolumeSeries.from_array(source, 1.0 if spacing is None else spacing,
-                                       0.0 if origin is None else origin, cache_bytes=cache_bytes)
+                                       0.0 if origin is None else origin, cache_bytes=cache_bytes,
+                                       nonfinite=load_options.get("nonfinite", "raise"))
     if isinstance(source, (list, tuple)):
         files = [Path(p) for p in source]
         label = f"{len(files)} files"
@@ -60,7 +61,7 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
         text = os.fspath(source)
         path = Path(text)
         if path.suffix.lower() == ".npy" and path.is_file():
-            return _npy_series(path, spacing, origin, cache_bytes)
+            return _npy_series(path, spacing, origin, cache_bytes, load_options.get("nonfinite", "raise"))
         if is_zarr_dir(path):
             return _zarr_series(path, spacing, origin, cache_bytes, **load_options)
         if suffix_of(path) in (".nii", ".nii.gz") and path.is_file() and nifti_steps(path) is not None:
@@ -89,7 +90,7 @@ def load_series(source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, spacing=
     return VolumeSeries(loaders, [f.name for f in files], cache_bytes=cache_bytes, name=label)
 
 
-def _npy_series(path: Path, spacing, origin, cache_bytes: int) -> VolumeSeries:
+def _npy_series(path: Path, spacing, origin, cache_bytes: int, nonfinite: str = "raise") -> VolumeSeries:
     require_regular_file(path, ".npy file")
     try:
         arr = np.load(path, mmap_mode="r", allow_pickle=False)
@@ -102,7 +103,8 @@ def _npy_series(path: Path, spacing, origin, cache_bytes: int) -> VolumeSeries:
         spacing = 1.0
     if origin is None:
         origin = 0.0
-    series = VolumeSeries.from_array(arr, spacing, origin, name=path.name, cache_bytes=cache_bytes)
+    series = VolumeSeries.from_array(arr, spacing, origin, name=path.name, cache_bytes=cache_bytes,
+                                     nonfinite=nonfinite)
     return series
 
 

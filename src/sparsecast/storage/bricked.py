@@ -485,7 +485,7 @@ class BrickedVolume(Volume):
             if self._nonfinite == "raise":
                 raise VolumeDataError(
                     f"{self.name}: NaN or Inf in voxels z {z0}:{z1}, y {y0}:{y1}, x {x0}:{x1}; expected finite "
-                    "values (pass nonfinite='replace')"
+                    "values (pass nonfinite='replace', on the command line --nonfinite replace)"
                 )
             lo, hi = self._range if self._range is not None else (0.0, 0.0)
             block = np.nan_to_num(block, nan=lo, posinf=hi, neginf=lo)

@@ -325,7 +325,8 @@ def scan(
     if n_bad and nonfinite == "raise":
         raise VolumeDataError(
             f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
-            f"(pass nonfinite='replace' to substitute the finite min/max)"
+            f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
+            f"min/max)"
         )
     vmin, vmax = acc.vmin, acc.vmax
     finite = np.isfinite(vmin)
