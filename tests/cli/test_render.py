@@ -158,6 +158,30 @@ def test_iso_mode_matches_the_api(monkeypatch, capsys, tmp_path, small_volume_fi
     assert code == 2 and "needs isovalues" in err and not (tmp_path / "none.png").exists()
 
 
+def test_isovalue_outside_the_data_warns(monkeypatch, capsys, tmp_path, small_volume_file):
+    """An isovalue outside the value range renders the documented background image, with a
+    warning that says why (one value of several: no surface for it)."""
+    vol = sc.load_volume(small_volume_file)
+    lo, hi = vol.value_range
+    far = hi + 10.0 * (hi - lo)
+    arr = tmp_path / "far.npy"
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "16x16", "--mode", "iso",
+                           "--iso", repr(far), "--background", "transparent", "-o", str(tmp_path / "far.png"),
+                           "--array", str(arr))
+    assert code == 0, err
+    assert "warning:" in err and f"{far:g}" in err and "outside the value range" in err
+    assert "background only" in err
+    assert not np.load(arr).any()  # transparent background: nothing drawn
+    mid = lo + 0.5 * (hi - lo)
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "16x16", "--mode", "iso",
+                           "--iso", repr(mid), "--iso", repr(far), "-o", str(tmp_path / "two.png"))
+    assert code == 0, err
+    assert "no surface for it" in err and f"{mid:g}" not in err.split("warning:")[1]
+    code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), "--size", "16x16", "--mode", "iso",
+                           "--iso", repr(mid), "-o", str(tmp_path / "in.png"))
+    assert code == 0 and "warning:" not in err
+
+
 def test_default_threshold_rises_above_a_background_peak(monkeypatch, capsys, tmp_path):
     """A scan whose background noise sits at 30 % of its range: the default (--threshold
     auto) shows the object and leaves the box's empty corners clear; 0.1 fogs the box."""

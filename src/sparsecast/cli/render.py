@@ -141,6 +141,14 @@ def render(
     tfn = smoothed_labels(make_tf(tf, vol, tf_range, threshold), tf, smooth_labels)
     if tfn.is_transparent:
         warn(f"transfer function {tf!r} has zero opacity everywhere; the image is background only")
+    if iso and mode != "dvr":
+        # Documented as a background image (no surface), which looked like a failed render.
+        lo, hi = vol.value_range
+        outside = [v for v in iso if v < lo or v > hi]
+        if outside:
+            alone = len(outside) == len(iso) and mode == "iso"
+            warn(f"--iso {', '.join(f'{v:g}' for v in outside)}: outside the value range [{lo:g}, {hi:g}] of "
+                 f"{vol.name}; " + ("the image is background only" if alone else "no surface for it"))
     az, el = orbit_angles(frame, azimuth, elevation)
     cam = Camera.orbit(vol, az, el, projection=projection, zoom=zoom, **frame)  # type: ignore[arg-type]
     bg = parse_background(background)
