@@ -129,13 +129,14 @@ def test_clip_box_and_planes_match_the_api(monkeypatch, capsys, tmp_path, small_
     assert ref.stats["samples_nonempty"] < full.stats["samples_nonempty"]
 
 
-@pytest.mark.parametrize("opt, value", [("--clip-box", "0,0,0,1,1"), ("--clip-plane", "0,0,0,1,0,x"),
+@pytest.mark.parametrize("opt, value", [("--clip-box", "0,0,0,1,1"), ("--clip-box", "5,0,0,1,1,1"),
+                                        ("--clip-box", "0,0,0,1,inf,1"), ("--clip-plane", "0,0,0,1,0,x"),
                                         ("--clip-plane", "0,0,0,0,0,0")])
 def test_bad_clip_options_are_one_error(monkeypatch, capsys, tmp_path, small_volume_file, opt, value):
     code, _, err = run_cli(monkeypatch, capsys, "render", str(small_volume_file), opt, value,
                            "-o", str(tmp_path / "c.png"))
     assert code == 2
-    assert err.count("error:") == 1 and opt in err
+    assert err.count("error:") == 1 and opt in err and repr(value) in err  # the typed text, verbatim
     assert not (tmp_path / "c.png").exists()
 
 

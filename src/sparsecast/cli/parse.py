@@ -10,6 +10,7 @@ one line). Index specs are parsed by :func:`sparsecast.index.parse_index_spec`
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Optional
 
@@ -105,6 +106,9 @@ def parse_clip_box(text: Optional[str]):
     v = parse_numbers(text, "--clip-box")
     if len(v) != 6:
         raise fail("--clip-box", "6 numbers x0,y0,z0,x1,y1,z1 (world units)", text)
+    if not all(math.isfinite(x) for x in v) or any(v[i] > v[i + 3] for i in range(3)):
+        # (the renderer checks this too, but names its own parameter and not the text typed)
+        raise fail("--clip-box", "finite corners x0,y0,z0,x1,y1,z1 with x0 <= x1, y0 <= y1, z0 <= z1", text)
     return tuple(v[:3]), tuple(v[3:])
 
 
