@@ -17,7 +17,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from ..errors import SparsecastError
+from ..errors import ParameterError, SparsecastError, TransferFunctionError
 
 __all__ = [
     "app", "main", "out", "err", "warn", "error", "plain_console",
@@ -110,12 +110,31 @@ UpOpt = Annotated[Optional[str], typer.Option(
     help="World axis that is up on screen: x, y, z, -x, -y or -z (default z; scanned meshes are often y-up).")]
 
 
+#: Library parameters as the commands' options spell them: the library checks these values
+#: and names its own parameter ("dt: expected ..."), which a command-line user did not type.
+_OPTION_OF = {"dt": "--dt", "ert": "--ert", "zoom": "--zoom", "background": "--background",
+              "azimuth": "--azimuth", "elevation": "--elevation", "projection": "--projection",
+              "threshold": "--threshold", "value_range": "--tf-range", "width": "--size", "height": "--size"}
+
+
+def cli_message(exc: SparsecastError) -> str:
+    """The error's message, with a library parameter it starts with named as its option
+    (``--tf-range (value_range): expected ...``); the rest verbatim."""
+    text = str(exc)
+    name, sep, rest = text.partition(": ")
+    # (a TF's own checks raise TransferFunctionError: value_range is --tf-range's)
+    option = _OPTION_OF.get(name) if sep and isinstance(exc, (ParameterError, TransferFunctionError)) else None
+    if option is None:
+        return text
+    return f"{option}: {rest}" if option == "--" + name else f"{option} ({name}): {rest}"
+
+
 def main() -> None:
     """Console entry point: bad input becomes one line on stderr and exit status 2."""
     try:
         app()
     except SparsecastError as exc:
-        error(str(exc))
+        error(cli_message(exc))
         sys.exit(2)
     except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
         error(str(exc))
