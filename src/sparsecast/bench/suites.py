@@ -172,12 +172,12 @@ SUITES: dict[str, Suite] = {
             "512^2 and 1024^2, one view on each orbit around x, y, z (3 timed rounds and a warm-up "
             "per view, interleaved), sparse + dense TF, peers, BIH and RBVH sections",
             short="the papers' evaluation",
-            duration="56 min",
+            duration="70 min",
             datasets=_paper_datasets(),
             sizes=((512, 512), (1024, 1024)),
-            # Budget (2 cores, ~30 min): 4 frames (warm-up + 3 rounds) on 3 views cost what
-            # 1 frame on each of the 12 orbit views did; one view per axis circle keeps the
-            # three orbits. The dense TF (every index about a naive frame) and the peers 1 view.
+            # 70 min on a 2-core Intel Xeon (2026-12-06, peers included). Budget: 4 frames
+            # (warm-up + 3 rounds) on 3 views cost what 1 frame on each of the 12 orbit views
+            # did; one view per axis circle keeps the three orbits. The dense TF (every index about a naive frame) and the peers 1 view.
             views=tuple(orbit_views(4)[::4]),
             index_modes=True,
             dense_views=1,

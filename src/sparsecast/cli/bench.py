@@ -21,7 +21,7 @@ __all__ = ["bench"]
 
 @app.command()
 def bench(
-    suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: a 2-core machine, before the interleaved timing).")] = None,
+    suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: 2-core machines; paper, features and surface with the interleaved rounds).")] = None,
     dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's. --suite surface also takes its meshes (bunny, dragon, dragons-7m, ...).")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[Optional[bool], typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space (default: yes).")] = None,
