@@ -177,7 +177,8 @@ SUITES: dict[str, Suite] = {
             sizes=((512, 512), (1024, 1024)),
             # 70 min on a 2-core Intel Xeon (2026-12-06, peers included). Budget: 4 frames
             # (warm-up + 3 rounds) on 3 views cost what 1 frame on each of the 12 orbit views
-            # did; one view per axis circle keeps the three orbits. The dense TF (every index about a naive frame) and the peers 1 view.
+            # did; one view per axis circle keeps the three orbits. The dense TF (every index
+            # about a naive frame) and the peers 1 view.
             views=tuple(orbit_views(4)[::4]),
             index_modes=True,
             dense_views=1,
