@@ -12,8 +12,8 @@ from rich.text import Text
 from ..kernel_cache import compile_note, compile_seconds
 from ..storage import BrickedVolume
 from .app import (
-    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, SpacingOpt, TfOpt,
-    TfRangeOpt, ThresholdOpt, app, out,
+    AllowOutsideOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt,
+    SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, app, out,
 )
 from .inputs import load_input, make_tf
 

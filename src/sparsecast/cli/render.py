@@ -13,8 +13,9 @@ from ..errors import ParameterError
 from ..image import IMAGE_SUFFIXES
 from ..kernel_cache import compile_note, compile_seconds
 from .app import (
-    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, OutputOpt,
-    PiecesOpt, ProjectionOpt, SchedulerOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, ZoomOpt, app, out, warn,
+    AllowOutsideOpt, CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt,
+    OutputOpt, PiecesOpt, ProjectionOpt, SchedulerOpt, SizeOpt, SpacingOpt, TfOpt, TfRangeOpt, ThresholdOpt, UpOpt,
+    ViewOpt, ZoomOpt, app, out, warn,
 )
 from ..index.registry import check_index_options
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame, smoothed_labels

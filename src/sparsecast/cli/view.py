@@ -9,8 +9,8 @@ import typer
 from .._util.checks import as_int
 from ..errors import ParameterError
 from .app import (
-    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, PiecesOpt, SchedulerOpt,
-    SpacingOpt, TfOpt,
+    CellOpt, DimsOpt, DtypeOpt, FileArg, LazyOpt, LevelOpt, MemoryLimitOpt, NonFiniteOpt, OrientationOpt, PiecesOpt,
+    SchedulerOpt, SpacingOpt, TfOpt,
     TfRangeOpt, ThresholdOpt, UpOpt, ViewOpt, app, err, out, warn,
 )
 from .inputs import load_input, make_tf, orbit_angles, orbit_frame, preset_range, threshold_value
