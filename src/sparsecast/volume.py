@@ -114,6 +114,7 @@ class BrickLabels:
 MAX_BRICK_LABELS = 4096
 #: largest id span (max id - min id) tracked: the id -> rank table is int32
 _MAX_ID_SPAN = 1 << 20
+_MISSING = object()  # Volume.derived's "no entry" (an entry may be any object)
 
 
 class Volume:
@@ -321,12 +322,19 @@ class Volume:
         (e.g. the index :func:`sparsecast.render` builds from a name). It lives and
         dies with the volume, and the voxels are read-only, so nothing in it goes
         stale with them; what else an entry depends on (a TF) is its owner's to check.
+        A hit makes the entry the most recently used (the last to be dropped).
         """
-        return self._derived.get(key)
+        value = self._derived.pop(key, _MISSING)
+        if value is _MISSING:
+            return None
+        # Least recently used goes first: an index read at every frame outlives the
+        # ones a TF drag stores beside it (each emptiness keeps its own, render.reuse).
+        self._derived[key] = value
+        return value
 
     def keep_derived(self, key: Hashable, value: Any, limit: int = 4) -> None:
-        """Store ``value`` under ``key`` (see :meth:`derived`), dropping the oldest
-        entries beyond ``limit``, so the store never grows past a few entries."""
+        """Store ``value`` under ``key`` (see :meth:`derived`), dropping the least
+        recently used entries beyond ``limit``, so the store never grows past a few."""
         self._derived.pop(key, None)
         self._derived[key] = value
         while len(self._derived) > max(1, int(limit)):

@@ -119,3 +119,17 @@ def test_the_volume_keeps_a_few_entries():
     v.keep_derived(("k", 7), "new", limit=3)  # replacing an entry makes it the newest
     v.keep_derived(("k", 10), 10, limit=3)
     assert v.derived(("k", 8)) is None and v.derived(("k", 7)) == "new"
+
+
+def test_an_entry_read_outlives_newer_ones():
+    """Least recently used goes first: the index a viewer reads at every frame is not
+    dropped by the indices a TF drag keeps beside it."""
+    v = sc.Volume(np.zeros((4, 4, 4), np.float32))
+    for i in range(3):
+        v.keep_derived(("k", i), i, limit=3)
+    for i in range(3, 8):
+        assert v.derived(("k", 0)) == 0  # read at every "frame"
+        v.keep_derived(("k", i), i, limit=3)
+    assert v.derived(("k", 0)) == 0
+    assert [v.derived(("k", i)) for i in range(1, 8)] == [None] * 5 + [6, 7]
+
