@@ -86,11 +86,17 @@ def test_clip_box_list_equals_clip_box_bit_for_bit(seed, count, sx, sy, sz):
     inv = [inverse.py_func(c)[0] for c in d]
     pad, t_lo, t_hi = 1e-7, float(rng.uniform(0, 2)), float(rng.uniform(2, 20))
     out = np.full((2, count + 3), np.nan)
-    clip_box_list(boxes, count, *o, *inv, pad, t_lo, t_hi, out)
+    clip_box_list(boxes, 0, count, *o, *inv, pad, t_lo, t_hi, out)
     for i in range(count):
         want = _widened(o, d, lo[:, i], hi[:, i], pad, t_lo, t_hi)
         assert (out[0, i], out[1, i]) == want, i
     assert np.isnan(out[:, count:]).all()  # only the first `count` columns are written
+    # A run of the list from `first` lands at the front of `out`.
+    first = count // 3
+    part = np.full((2, count + 3), np.nan)
+    clip_box_list(boxes, first, count - first, *o, *inv, pad, t_lo, t_hi, part)
+    assert np.array_equal(part[:, : count - first], out[:, first:count])
+    assert np.isnan(part[:, count - first:]).all()
 
 
 @given(st.integers(0, 2**32 - 1), st.integers(0, 40))

@@ -73,7 +73,7 @@ BOX_ROWS = 6
 
 
 @njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
-def clip_box_list(boxes, count, ox, oy, oz, ix, iy, iz, pad, t_lo, t_hi, out):
+def clip_box_list(boxes, first, count, ox, oy, oz, ix, iy, iz, pad, t_lo, t_hi, out):
     """Clip one ray against ``count`` boxes at once: what :func:`clip_box` gives each,
     widened by ``pad`` and clipped to ``[t_lo, t_hi]``, in one loop LLVM vectorises.
 
@@ -86,9 +86,10 @@ def clip_box_list(boxes, count, ox, oy, oz, ix, iy, iz, pad, t_lo, t_hi, out):
     Parameters
     ----------
     boxes : (6, n) float64
-        Rows ``lo_x, lo_y, lo_z, hi_x, hi_y, hi_z`` (:data:`BOX_ROWS`), ``n >= count``.
-    count : int
-        Boxes to test (the first ``count`` columns).
+        Rows ``lo_x, lo_y, lo_z, hi_x, hi_y, hi_z`` (:data:`BOX_ROWS`),
+        ``n >= first + count``.
+    first, count : int
+        Boxes to test: columns ``first .. first + count - 1``.
     ox, oy, oz : float
         Ray origin.
     ix, iy, iz : float
@@ -98,16 +99,18 @@ def clip_box_list(boxes, count, ox, oy, oz, ix, iy, iz, pad, t_lo, t_hi, out):
         Widening of every interval (``t0 - pad``, ``t1 + pad``) before the clip.
     t_lo, t_hi : float
         The ray's interval.
-    out : (2, n) float64
-        ``out[0, i], out[1, i]``: box ``i``'s interval, empty (``t0 > t1``) when missed.
+    out : (2, m) float64
+        ``out[0, i], out[1, i]``: box ``first + i``'s interval, empty (``t0 > t1``) when
+        missed, ``m >= count``.
     """
     # The near and far planes' rows on each axis (slab's swap for inv < 0).
     nx, fx = (0, 3) if ix >= 0.0 else (3, 0)
     ny, fy = (1, 4) if iy >= 0.0 else (4, 1)
     nz, fz = (2, 5) if iz >= 0.0 else (5, 2)
     for i in range(count):
-        tn = max(max((boxes[nx, i] - ox) * ix, (boxes[ny, i] - oy) * iy), (boxes[nz, i] - oz) * iz)
-        tf = min(min((boxes[fx, i] - ox) * ix, (boxes[fy, i] - oy) * iy), (boxes[fz, i] - oz) * iz)
+        b = first + i
+        tn = max(max((boxes[nx, b] - ox) * ix, (boxes[ny, b] - oy) * iy), (boxes[nz, b] - oz) * iz)
+        tf = min(min((boxes[fx, b] - ox) * ix, (boxes[fy, b] - oy) * iy), (boxes[fz, b] - oz) * iz)
         out[0, i] = max(tn - pad, t_lo)
         out[1, i] = min(tf + pad, t_hi)
 
