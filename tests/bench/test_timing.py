@@ -200,6 +200,10 @@ def test_surface_section_reports_both_layouts_per_cpu_second():
     # The exact layouts see the same hits.
     assert by[("bvh-binary", "render")]["hits"] == by[("bvh", "render")]["hits"]
     assert by[("bvh-binary", "render")]["hit_mismatch_pct"] == 0.0
+    # And the BVH over spatially split references, built from more references.
+    assert by[("bvh-splits", "build")]["splits"] > 0 and by[("bvh-splits", "build")]["layout"] == "wide"
+    assert by[("bvh-splits", "render")]["hits"] == by[("bvh", "render")]["hits"]
+    assert by[("bvh-splits", "render")]["hit_mismatch_pct"] == 0.0
     # So do the RBVH's: the binary tree and its 4-wide collapse hold the same leaves.
     assert by[("rbvh-Q2-binary", "build")]["layout"] == "binary"
     assert by[("rbvh-Q2-binary", "build")]["tiles"] == by[("rbvh-Q2", "build")]["tiles"]

@@ -26,6 +26,27 @@ def test_render_mesh_command(monkeypatch, capsys, tmp_path, index):
         assert np.asarray(im)[15, 20, 0] > 0  # the sphere is drawn
 
 
+def test_spatial_splits_render_the_same_mesh(monkeypatch, capsys, tmp_path):
+    path = tmp_path / "sphere.ply"
+    s = icosphere(3)
+    trimesh.Trimesh(s.vertices, s.faces, process=False).export(path)
+    images = {}
+    for splits in ("0", "2"):
+        out = tmp_path / f"s{splits}.png"
+        code, stdout, err = run_cli(monkeypatch, capsys, "render-mesh", str(path), "--index", "bvh", "--splits", splits,
+                                    "--size", "40x30", "-o", str(out))
+        assert code == 0, err
+        assert ("spatial splits" in stdout) == (splits != "0")
+        with PILImage.open(out) as im:
+            images[splits] = np.asarray(im).astype(int)
+    # The same hits: at most an edge pixel's shading differs (a tie between two faces).
+    assert np.abs(images["0"] - images["2"]).max() <= 2
+    for bad, words in ((["--splits", "1"], "--index bvh"), (["--index", "bvh", "--splits", "-1"], "0..4")):
+        code, _, err = run_cli(monkeypatch, capsys, "render-mesh", str(path), *bad, "-o", str(tmp_path / "x.png"))
+        assert code == 2 and "--splits" in err and words in err, err
+        assert not (tmp_path / "x.png").exists()
+
+
 def test_render_mesh_errors_are_one_line(monkeypatch, capsys, tmp_path):
     code, _, err = run_cli(monkeypatch, capsys, "render-mesh", str(tmp_path / "none.ply"), "-o", str(tmp_path / "o.png"))
     assert code == 2 and "none.ply" in err

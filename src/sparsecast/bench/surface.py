@@ -3,7 +3,8 @@
 Per mesh (the shared ``bunny`` and ``beast``, and ``bunny-1m``: the bunny
 midpoint-subdivided twice to 1.1 M triangles, same surface; ``sphere-1m`` stands
 in when the shared data is absent; opt-in: ``turbine`` (the shared 199 k turbine
-blade scan), ``bunny-4m``, ``sphere-1m``, and the
+blade scan), ``bunny-4m``, ``sphere-1m``, ``slivers`` (100 k long, thin triangles at
+random, generated: where spatial splits pay), and the
 RBVH's own regime of 4-10 M triangles, built in memory from the shared dragon:
 ``dragon`` (871 k), ``dragon-3.5m`` (subdivided once: the same surface, four times
 the triangles) and ``dragons-7m`` (eight dragons side by side, each turned about
@@ -11,7 +12,9 @@ the vertical: 7 M triangles of distinct surface)):
 
 - ``phase="load"``: reading (and generating) the mesh;
 - ``phase="build"`` (Tables 1-2): the exact BVH (``bvh``: the 4-wide layout;
-  ``bvh-binary``: the same build tree in the binary layout) and the RBVH at Q0-Q4 (SAH
+  ``bvh-binary``: the same build tree in the binary layout; ``bvh-splits``: the 4-wide
+  BVH built over spatially split references, :data:`BENCH_SPLITS` extra per triangle
+  at most) and the RBVH at Q0-Q4 (SAH
   splits, 4-wide layout) plus Q2 with median splits, Q2 in the binary layout
   (``rbvh-Q2-binary``) and Q2 with 3 mip levels: build ms, nodes, tiles, texels,
   bytes of nodes / triangles / atlas, and ``mem_ratio`` = RBVH bytes / (BVH nodes +
@@ -59,6 +62,8 @@ from .timing import Frame, Runs, interleaved, median_ms
 __all__ = ["run", "MESHES", "DEFAULT_DATASETS", "QUALITIES"]
 
 QUALITIES = ("Q0", "Q1", "Q2", "Q3", "Q4")
+#: extra references per triangle of the ``bvh-splits`` method
+BENCH_SPLITS = 1.0
 VIEW = (30.0, 20.0)
 
 
@@ -91,6 +96,21 @@ def side_by_side(mesh: TriangleMesh, nx: int, ny: int, seed: int = 3) -> Triangl
     return TriangleMesh(np.concatenate(verts), np.concatenate(faces), f"{mesh.source} ({nx}x{ny} copies)")
 
 
+def slivers(n: int = 100_000, length: float = 0.8, width: float = 0.01, seed: int = 0) -> TriangleMesh:
+    """``n`` long, thin triangles (``length`` by ``width``) at random places and turns in
+    the cube ``[-1, 1]^3``: boxes far larger than their triangles, as in CAD tessellations,
+    where spatial splits (``build_bvh(splits=...)``) pay."""
+    rng = np.random.default_rng(seed)
+    c = rng.uniform(-1.0, 1.0, (n, 3))
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = rng.normal(size=(n, 3))
+    w -= (w * u).sum(axis=1, keepdims=True) * u
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    v = np.stack([c - 0.5 * length * u, c + 0.5 * length * u, c + width * w], axis=1)
+    return TriangleMesh(v.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), f"slivers-{n}")
+
+
 #: name -> (loader, needs shared data)
 MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny": (_shared("stanford_bunny.ply"), True),
@@ -98,6 +118,7 @@ MESHES: dict[str, tuple[Callable[[], TriangleMesh], bool]] = {
     "bunny-1m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 2), True),
     "bunny-4m": (lambda: subdivide(_shared("stanford_bunny.ply")(), 3), True),
     "sphere-1m": (lambda: icosphere(8), False),
+    "slivers": (slivers, False),
     "turbine": (_shared("turbine_blade_199k.ply"), True),
     "dragon": (_shared("stanford_dragon_871k.ply"), True),
     "dragon-3.5m": (lambda: subdivide(_shared("stanford_dragon_871k.ply")(), 1), True),
@@ -248,6 +269,9 @@ def _bench_mesh(name: str, mesh: TriangleMesh, width: int, height: int, repeat: 
     indices: dict[str, SurfaceIndex] = {"bvh": bvh}
     indices["bvh-binary"] = build_and_record("bvh-binary", lambda: build_bvh(mesh, layout="binary"),
                                              layout="binary")
+    # Spatial splits (Karras & Aila's pre-splitting): what they buy on this mesh.
+    indices["bvh-splits"] = build_and_record("bvh-splits", lambda: build_bvh(mesh, splits=BENCH_SPLITS),
+                                             layout="wide", splits=BENCH_SPLITS)
     for q in QUALITIES:
         idx = build_and_record(f"rbvh-{q}", lambda q=q: build_rbvh(mesh, q), quality=q, split="sah")
         indices[f"rbvh-{q}"] = idx

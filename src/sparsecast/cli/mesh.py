@@ -29,6 +29,7 @@ def render_mesh(
     file: Annotated[Path, typer.Argument(help="Mesh (.ply .obj .stl .glb .off) or point cloud (a .ply without faces; .npy with --points).")],
     index: Annotated[str, typer.Option(help="rbvh (approximate, height-field tiles) or bvh (exact triangles or discs).")] = "rbvh",
     quality: Annotated[str, typer.Option(help="RBVH quality preset Q0 (finest) .. Q4 (coarsest).")] = "Q2",
+    splits: Annotated[float, typer.Option(help="--index bvh: spatial splits before the build, up to this many extra references per triangle (0..4; 1 pays on meshes of long, thin triangles, such as CAD tessellations).")] = 0.0,
     mode: Annotated[str, typer.Option(help="shaded, depth or normal.")] = "shaded",
     azimuth: AzimuthOpt = 30.0,
     elevation: ElevationOpt = 20.0,
@@ -72,7 +73,14 @@ def render_mesh(
                                  f"of {surface.n_triangles} triangles (--points reads its vertices)")
         surface = orient(surface, up)
         what = f"{surface.n_triangles} triangles" + (f" after dropping {dropped} degenerate" if drop_degenerate else "")
-    build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else build_bvh
+    if not 0.0 <= splits <= 4.0:
+        raise ParameterError(f"--splits: expected extra references per triangle in 0..4, got {splits}")
+    if splits and index != "bvh":
+        raise ParameterError(f"--splits: spatial splits are an option of the exact BVH (--index bvh), "
+                             f"got --index {index}")
+    if splits and isinstance(surface, PointCloud):
+        raise ParameterError(f"--splits: spatial splits cut triangles; {file.name} is rendered as points")
+    build = (lambda m: build_rbvh(m, quality)) if index == "rbvh" else (lambda m: build_bvh(m, splits=splits))
     # Compile the build kernels on a tiny surface of the same kind first (Numba caches
     # them on disk), so the build time printed below is the build's, not the first
     # run's JIT compilation; render_surface does the same for its kernel.
@@ -87,6 +95,7 @@ def render_mesh(
     out.print(
         f"wrote {output} ({width}x{height}, {file.name}: {what}, index {index}"
         + (f" {quality}, {st['tiles']} tiles" if index == "rbvh" else "")
+        + (f", spatial splits: {st['references']} references" if splits else "")
         + f", {st['nodes']} nodes, {st['bytes'] / 2**20:.1f} MiB; build {st['build_ms']:.0f} ms, "
         f"render {s['ms']:.0f} ms, {s['mrays_s']:.1f} Mrays/s; " + (f"{note}, " if note else "")
         + f"{time.perf_counter() - t0:.1f} s total)"

@@ -14,18 +14,27 @@ import time
 
 import numpy as np
 
+from .._util.checks import as_float
 from ..errors import ParameterError
 from ._bvh_kernels import disc_leaf_code
 from .index import SurfaceIndex, empty_atlas_arrays
 from .mesh import PointCloud, TriangleMesh
+from .presplit import presplit_refs
 from .sah import BuildTree, build_sah
 from .wide import collapse_tree
 
 __all__ = ["build_bvh", "LAYOUTS", "triangle_tree", "triangle_bvh_arrays", "disc_boxes"]
 
 
-def triangle_tree(tris: np.ndarray, max_leaf: int = 4, bins: int = 16) -> BuildTree:
-    """Binned-SAH BVH over ``tris`` (k, 3, 3) in the build layout; ``ids`` orders the leaf triangles."""
+def triangle_tree(tris: np.ndarray, max_leaf: int = 4, bins: int = 16, splits: float = 0.0) -> BuildTree:
+    """Binned-SAH BVH over ``tris`` (k, 3, 3) in the build layout; ``ids`` orders the leaf triangles.
+
+    ``splits`` > 0 builds over :func:`.presplit.presplit_refs`'s references (that many
+    extra references per triangle, at most): a triangle may then lie in several leaves.
+    """
+    if splits > 0.0:
+        lo, hi, prims = presplit_refs(tris, splits)
+        return build_sah(lo, hi, max_leaf, bins, prims=prims)
     # Corner by corner: NumPy reduces the short middle axis of (k, 3, 3) slowly.
     lo = np.minimum(np.minimum(tris[:, 0], tris[:, 1]), tris[:, 2])
     hi = np.maximum(np.maximum(tris[:, 0], tris[:, 1]), tris[:, 2])
@@ -53,7 +62,7 @@ LAYOUTS = ("wide", "binary")
 
 
 def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: int = 16,
-              layout: str | None = None) -> SurfaceIndex:
+              layout: str | None = None, splits: float = 0.0) -> SurfaceIndex:
     """Exact BVH of a triangle mesh, or of a point cloud's discs (binned SAH).
 
     Parameters
@@ -69,6 +78,11 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
         Traversal layout: the 4-wide BVH (:mod:`sparsecast.surface.wide`; the
         default for meshes) or the binary one (the default, and the only one, for
         point clouds). Both come from the same build tree.
+    splits : float
+        Spatial splits before the build (:mod:`sparsecast.surface.presplit`, Karras &
+        Aila 2013): up to ``splits`` extra box references per triangle, 0..4, given to
+        the triangles whose boxes hold the most empty space; 0 (the default): one box
+        a triangle. Meshes only.
     """
     if not isinstance(surface, (TriangleMesh, PointCloud)):
         raise ParameterError(f"mesh: expected a TriangleMesh or PointCloud (see sparsecast.io.meshes.load_mesh, "
@@ -79,7 +93,11 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
         raise ParameterError(f"bins: expected 2..256, got {bins}")
     if layout is not None and layout not in LAYOUTS:
         raise ParameterError(f"layout: expected one of {', '.join(LAYOUTS)}, got {layout!r}")
+    splits = as_float(splits, "splits", 0.0, 4.0, expected="extra references per triangle in 0..4")
     if isinstance(surface, PointCloud):
+        if splits:
+            raise ParameterError(f"splits: spatial splits cut triangles; a point cloud ({surface.source!r}) "
+                                 "is ray cast as discs (splits=0)")
         if layout == "wide":
             raise ParameterError(f"layout: the wide BVH holds triangles; a point cloud ({surface.source!r}) "
                                  "is ray cast as discs in the binary layout (layout='binary')")
@@ -88,7 +106,7 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
     t0 = time.perf_counter()
     tris = mesh.triangles.astype(np.float32)
     t1 = time.perf_counter()
-    tree = triangle_tree(tris, max_leaf, bins)
+    tree = triangle_tree(tris, max_leaf, bins, float(splits))
     t2 = time.perf_counter()
     vnormals = mesh.vertex_normals.astype(np.float32)
     if layout == "binary":
@@ -109,7 +127,8 @@ def build_bvh(surface: TriangleMesh | PointCloud, *, max_leaf: int = 4, bins: in
         build={"build_ms": (time.perf_counter() - t0) * 1e3,
                "phase_prepare_ms": (t1 - t0) * 1e3, "phase_sah_ms": (t2 - t1) * 1e3,
                "phase_flatten_ms": (t3 - t2) * 1e3, "max_leaf": max_leaf, "bins": bins,
-               "threads": tree.threads, "layout": layout or "wide"},
+               "threads": tree.threads, "layout": layout or "wide", "splits": float(splits),
+               "references": int(len(tree.ids))},
     )
 
 

@@ -60,7 +60,7 @@ class BuildTree:
 
 
 def build_sah(bmin: np.ndarray, bmax: np.ndarray, max_leaf: int = 4, bins: int = 16,
-              threads: int | None = None) -> BuildTree:
+              threads: int | None = None, prims: np.ndarray | None = None) -> BuildTree:
     """Binned-SAH BVH over ``m >= 1`` primitive boxes ``bmin``, ``bmax`` (m, 3).
 
     Parameters
@@ -72,8 +72,14 @@ def build_sah(bmin: np.ndarray, bmax: np.ndarray, max_leaf: int = 4, bins: int =
         SAH bins per axis.
     threads : int, optional
         Default ``numba.get_num_threads()``.
+    prims : (m,) int32, optional
+        The primitive each box stands for (default: box ``i`` is primitive ``i``); several
+        boxes may name one primitive (:mod:`.presplit`'s references), and ``ids`` then
+        names it in the leaf of each.
     """
     box, ids, root = prim_refs(bmin, bmax)
+    if prims is not None:
+        ids[:] = prims
     m = len(ids)
     cap = max(2 * m - 1, 1)
     bounds = np.empty((cap, 2, 3), np.float32)
