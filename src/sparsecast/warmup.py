@@ -307,6 +307,7 @@ def _bvh_build() -> None:
     from .surface.mesh import warmup_mesh
 
     build_bvh(warmup_mesh())
+    build_bvh(warmup_mesh(), splits=1.0)  # the spatial splits' kernels
 
 
 def _rbvh_build() -> None:
