@@ -12,6 +12,7 @@ import sparsecast as sc
 from sparsecast.errors import ParameterError
 from sparsecast.index.kdtree import occupancy
 from sparsecast.index.kdtree import CellOccupancy
+from sparsecast.index.kdtree.build import MIN_LEAF
 
 from synthetic import sparse_volume
 
@@ -195,7 +196,7 @@ def test_shallow_halting_rule(blobs, threshold):
 def test_deep_min_leaf(blobs, min_leaf):
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
     idx = sc.build_index(blobs, tf, "kdtree-deep", **({} if min_leaf is None else {"min_leaf": min_leaf}))
-    assert idx.min_leaf == (4 if min_leaf is None else min_leaf) and idx.n_leaves > 1
+    assert idx.min_leaf == (MIN_LEAF if min_leaf is None else min_leaf) and idx.n_leaves > 1
     for n in range(idx.n_nodes):
         a = idx.node_axis[n]
         box = idx.node_box[n]

@@ -16,7 +16,7 @@ construction fast enough to redo on every TF change with summed-volume tables
 
 ``kdtree-shallow`` applies Vidal's halting rule (both children >= 10 % of the
 root's volume and a smaller summed volume); ``kdtree-deep`` splits down to leaves
-of ``min_leaf`` (4) cells on the split axis.
+of ``min_leaf`` (:data:`MIN_LEAF`, 2) cells on the split axis.
 
 Arrays (traversed by :mod:`.traversal`, and by the hybrid grids)
 ----------------------------------------------------------------
@@ -71,10 +71,19 @@ from . import occupancy
 from .split import build_tree
 from .traversal import TILE_LEAVES, KdListRecord, KdStackRecord
 
-__all__ = ["KdTree", "ShallowKdTree", "DeepKdTree", "CellOccupancy", "cell_occupancy", "BOX_MARGIN"]
+__all__ = ["KdTree", "ShallowKdTree", "DeepKdTree", "CellOccupancy", "cell_occupancy", "BOX_MARGIN", "MIN_LEAF"]
 
 #: growth of every node and leaf box on each side, in voxels (see "Exactness")
 BOX_MARGIN = 1e-6
+#: the deep tree's default ``min_leaf``. Measured (``sparsecast bench``, 9 shared CT / MR /
+#: density volumes, 2 views, 512^2 and 1024^2, one interleaved run, 2026-12-06): against 4
+#: (with 96-leaf tile lists), the samples fall from 1.39-7.16x the oracle to 1.31-6.30x
+#: (bonsai 1.97 -> 1.62, headsq 2.18 -> 1.87, aneurism 4.05 -> 2.72); frames 1.02-1.15x
+#: faster on aneurism, avm-cta, chest-ct, density-1jzv and headsq, within 3 % on the tooth
+#: and neghip, but 0.82-0.97x on bonsai and 0.84-0.99x on mni152 (their trees hold 2.7-3x
+#: the leaves, and each tile walks and clips more of them); rebuilds 1.15-1.6x longer.
+#: At 8, 1.8-5.1x the oracle and slower frames everywhere.
+MIN_LEAF = 2
 
 
 class CellOccupancy:
@@ -204,9 +213,8 @@ class KdTree(SpatialIndex):
     min_frac : float
         Shallow trees: smallest leaf volume as a fraction of the root's (0.1).
     min_leaf : int
-        Deep trees: cells a split plane leaves on either side, at least (4: on the
-        shared CT / MR volumes 1.4-3.3x the oracle samples against 1.8-5.1x at 8,
-        and faster frames on all of them at 1024^2).
+        Deep trees: cells a split plane leaves on either side, at least
+        (:data:`MIN_LEAF`).
     apron : bool, optional
         Classify cells with the one-voxel apron (default: the class's ``apron``,
         False for the k-d trees; see "Exactness without the apron").
@@ -217,7 +225,7 @@ class KdTree(SpatialIndex):
     apron: bool = False
 
     def __init__(self, volume, tf, bins: int = 32, bin_levels: int = 64,
-                 min_frac: float = 0.1, min_leaf: int = 4, apron: bool | None = None) -> None:
+                 min_frac: float = 0.1, min_leaf: int = MIN_LEAF, apron: bool | None = None) -> None:
         super().__init__(volume, tf)
         if apron is not None:
             self.apron = bool(apron)
@@ -363,7 +371,7 @@ class ShallowKdTree(KdTree):
 
 @register_index
 class DeepKdTree(KdTree):
-    """Deep k-d tree down to ``min_leaf`` (default 4) cells; each 8x8 tile of rays
+    """Deep k-d tree down to ``min_leaf`` (default :data:`MIN_LEAF`) cells; each 8x8 tile of rays
     culls it once with the tile's frustum into a front-to-back leaf list, and its
     rays walk that list (a tile whose frustum meets more than ``tile_leaves``
     leaves traverses the tree per ray).
