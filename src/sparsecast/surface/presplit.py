@@ -318,9 +318,11 @@ def presplit_refs(tris: np.ndarray, budget: float) -> tuple[np.ndarray, np.ndarr
             refs[top] += 1
     offset = np.concatenate([[0], np.cumsum(refs)[:-1]])
     r = int(refs.sum())
-    out_lo = np.empty((r, 3), np.float64)
-    out_hi = np.empty((r, 3), np.float64)
+    # float32 out: every box coordinate is a float32 (a vertex's, a float32 step
+    # outwards, or a parent's), so the kernel's stores are exact.
+    out_lo = np.empty((r, 3), np.float32)
+    out_hi = np.empty((r, 3), np.float32)
     out_id = np.empty(r, np.int32)
     _split_all(tris, blo64, bhi64, refs, offset, s_lo, inv_ext, out_lo, out_hi, out_id)
     keep = out_id >= 0
-    return out_lo[keep].astype(np.float32), out_hi[keep].astype(np.float32), out_id[keep]
+    return out_lo[keep], out_hi[keep], out_id[keep]
