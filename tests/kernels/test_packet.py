@@ -15,7 +15,7 @@ from sparsecast.kernels.packet import PACKET, PACKET_BUFFER, sample_packet, valu
 from sparsecast.kernels.ray import lattice_range
 from sparsecast.kernels.sampler import Nearest, Trilinear, sample
 from sparsecast.kernels.shade import tf_alpha, tf_color
-from sparsecast.kernels.vectorize import NoAliasCompiler
+from sparsecast.kernels.vectorize import LaneLoopCompiler
 
 
 @njit
@@ -157,12 +157,51 @@ def test_lane_loop_is_vectorised():
            types.float64, types.float64, *([types.float64] * 7), types.int64, types.float64[::1])
     opts = {k: v for k, v in sample_packet.targetoptions.items() if k not in ("cache", "nopython")}
     # compiled again uncached (a copy loaded from the disk cache keeps no assembly)
-    fresh = njit(pipeline_class=NoAliasCompiler, **opts)(sample_packet.py_func)
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(sample_packet.py_func)
     fresh.compile(sig)
     control = njit(**opts)(sample_packet.py_func)
     control.compile(sig)
     assert _packed_double_ops(fresh, sig) >= 7  # at least the trilinear interpolation's multiplies
     assert _packed_double_ops(control, sig) == 0
+
+
+def _avx512() -> bool:
+    import llvmlite.binding as ll
+
+    return "+avx512f" in ll.get_host_cpu_features().flatten().split(",")
+
+
+def _fresh_sample_packet():
+    sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64, types.float32[:, ::1],
+           types.float64, types.float64, *([types.float64] * 7), types.int64, types.float64[::1])
+    opts = {k: v for k, v in sample_packet.targetoptions.items() if k not in ("cache", "nopython")}
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(sample_packet.py_func)
+    fresh.compile(sig)
+    return fresh, sig
+
+
+def test_lane_loops_ask_for_wide_vectors():
+    """The lane loops carry LLVM's ``prefer-vector-width`` attribute (any host)."""
+    fresh, sig = _fresh_sample_packet()
+    name = fresh.overloads[sig].fndesc.llvm_func_name
+    ir = fresh.inspect_llvm(sig)
+    define = next(line for line in ir.splitlines() if line.startswith("define") and f"@{name}(" in line)
+    group = re.search(r"(#\d+) \{$", define).group(1)  # the optimised module lists attributes in groups
+    attributes = next(line for line in ir.splitlines() if line.startswith(f"attributes {group} ="))
+    assert '"prefer-vector-width"="512"' in attributes
+
+
+@pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64") or not _avx512(),
+                    reason="looks for AVX-512 registers in x86 assembly")
+def test_lane_loop_uses_zmm_registers():
+    """On an AVX-512 CPU the eight float64 lanes are one zmm register: LLVM's default
+    for such Intel CPUs (256-bit vectors, two ymm halves) is overridden."""
+    fresh, sig = _fresh_sample_packet()
+    asm = fresh.inspect_asm(sig)
+    name = fresh.overloads[sig].fndesc.llvm_func_name
+    start = asm.index(f"\n{name}:")
+    body = asm[start:asm.index(".Lfunc_end", start)]
+    assert re.search(r"\bv(?:mul|add|sub)pd\b[^\n]*%zmm", body)
 
 
 def test_sample_packet_lanes():
@@ -218,7 +257,7 @@ def test_value_packet_lane_loop_is_vectorised():
     sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
            *([types.float64] * 7), types.int64, types.float64[::1])
     opts = {k: v for k, v in value_packet.targetoptions.items() if k not in ("cache", "nopython")}
-    fresh = njit(pipeline_class=NoAliasCompiler, **opts)(value_packet.py_func)
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(value_packet.py_func)
     fresh.compile(sig)
     control = njit(**opts)(value_packet.py_func)
     control.compile(sig)

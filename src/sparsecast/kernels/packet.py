@@ -8,7 +8,7 @@ run as vector instructions. Its reads are adjacent pairs, one load each: the
 trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
 ``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
 scalar load and an insert per lane. The loop is compiled with ``noalias`` arguments
-(:class:`.vectorize.NoAliasCompiler`); without it the gathers kept it scalar.
+(:class:`.vectorize.LaneLoopCompiler`); without it the gathers kept it scalar.
 The operations per lane are the scalar ones in the same order, and Numba forms
 no fused multiply-adds, so every lane's floats equal the scalar loop's bit for
 bit. Compositing stays scalar (:func:`.march.march_segment`): it is a running
@@ -50,7 +50,7 @@ from .layout import layout_of
 from .sample import interior_gradient, trilinear_pairs
 from .sampler import Nearest, Trilinear, sample
 from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
-from .vectorize import NoAliasCompiler
+from .vectorize import LaneLoopCompiler
 
 __all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet",
            "value_packet"]
@@ -75,7 +75,7 @@ def packet_capable(sampler, flat) -> bool:
             and isinstance(flat, types.Array) and isinstance(flat.dtype, (types.Integer, types.Float)))
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
 def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf):
     """Classify lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf``.
 
@@ -109,7 +109,7 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
             _classify(table, v, v_lo, scale, lane, buf)
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
 def value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
     """Field values of lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf[:PACKET]``.
 
@@ -158,7 +158,7 @@ def _lane_any(sampler, flat, nx, ny, nz, x, y, z):
     return sample(sampler, flat, nx, ny, nz, x, y, z)
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
 def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz, inv_spacing, shading, buf):
     """Shade the colours of a packet's lanes in ``buf`` in place (see :func:`sample_packet`).
 

@@ -12,7 +12,7 @@ import math
 from numba import njit
 
 from .borrow import NO_REFCOUNT
-from .vectorize import NoAliasCompiler
+from .vectorize import LaneLoopCompiler
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # a plain call: see index.interval, "Inlining"
@@ -72,7 +72,7 @@ def clip_box(ox, oy, oz, dx, dy, dz, bx0, by0, bz0, bx1, by1, bz1):
 BOX_ROWS = 6
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler, **NO_REFCOUNT)
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
 def clip_box_list(boxes, first, count, ox, oy, oz, ix, iy, iz, pad, t_lo, t_hi, out):
     """Clip one ray against ``count`` boxes at once: what :func:`clip_box` gives each,
     widened by ``pad`` and clipped to ``[t_lo, t_hi]``, in one loop LLVM vectorises.

@@ -7,9 +7,9 @@ are data (voxel addresses computed from positions), so LLVM cannot bound them
 and will not emit run-time overlap checks either (its remark: "cannot identify
 array bounds"): the loop stays scalar. Numba can declare a function's pointer
 arguments ``noalias`` (its ``noalias`` compiler flag), but no ``jit`` option
-sets that flag; :class:`NoAliasCompiler` is Numba's documented extension point
-for it (``njit(pipeline_class=...)``), the default pipeline with the flag on.
-``cache=True`` keeps working.
+sets that flag; :class:`LaneLoopCompiler` is Numba's documented extension point
+for it (``njit(pipeline_class=...)``), the default pipeline with the flag on (and
+wider vectors preferred, see there). ``cache=True`` keeps working.
 
 A kernel compiled so promises that no two of its array arguments overlap in
 memory where one of them is written: give it distinct arrays (distinct rows of
@@ -26,18 +26,60 @@ from __future__ import annotations
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
+from numba.core import lowering
 from numba.core.compiler import Compiler
+from numba.core.compiler_machinery import register_pass
+from numba.core.typed_passes import NativeLowering
 from numba.extending import intrinsic
 
-__all__ = ["NoAliasCompiler", "lane_buffer", "load_run", "run_loadable"]
+__all__ = ["LaneLoopCompiler", "PREFER_VECTOR_WIDTH", "lane_buffer", "load_run", "run_loadable"]
 
 
-class NoAliasCompiler(Compiler):
-    """Numba's default pipeline, with the pointer arguments of the function ``noalias``."""
+#: the vector width (bits) the lane loops ask LLVM's x86 back end for (function attribute
+#: ``prefer-vector-width``)
+PREFER_VECTOR_WIDTH = 512
+
+
+class _WideLower(lowering.Lower):
+    """Numba's lowering, marking the function with ``prefer-vector-width``."""
+
+    def post_lower(self):
+        super().post_lower()
+        # llvmlite's attribute set takes enum attributes by name only; a string
+        # attribute goes into the definition as written, after the enum ones.
+        set.add(self.function.attributes, f'"prefer-vector-width"="{PREFER_VECTOR_WIDTH}"')
+
+
+@register_pass(mutates_CFG=True, analysis_only=False)
+class _WideNativeLowering(NativeLowering):
+    _name = "sparsecast_wide_native_lowering"
+
+    @property
+    def lowering_class(self):
+        return _WideLower
+
+
+class LaneLoopCompiler(Compiler):
+    """Numba's default pipeline for lane loops: pointer arguments ``noalias``, and
+    :data:`PREFER_VECTOR_WIDTH`-bit vectors preferred.
+
+    ``noalias`` is what lets LLVM vectorise the loop at all (see the module
+    docstring). The width: LLVM's x86 back end prefers 256-bit vectors on Intel
+    CPUs with AVX-512 (a tuning from Skylake-X, whose 512-bit instructions lowered
+    the clock), so a loop of eight float64 lanes became two ymm halves; the
+    function attribute ``prefer-vector-width=512`` makes it one zmm loop on CPUs
+    with AVX-512 and changes nothing elsewhere (the width is capped by the target's
+    registers). Same operations per lane, so the same floats. Measured (naive
+    marcher, unshaded, 512², Intel Xeon Emerald Rapids, 2 threads, 2026-12-06):
+    frames 15-25 % less CPU.
+    """
 
     def define_pipelines(self):
         self.state.flags.noalias = True
-        return super().define_pipelines()
+        pms = super().define_pipelines()
+        for pm in pms:
+            pm.passes = [(_WideNativeLowering, d) if p is NativeLowering else (p, d) for p, d in pm.passes]
+        return pms
 
 
 @intrinsic
