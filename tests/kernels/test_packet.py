@@ -194,8 +194,8 @@ def test_lane_loops_ask_for_wide_vectors():
 @pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64") or not _avx512(),
                     reason="looks for AVX-512 registers in x86 assembly")
 def test_lane_loop_uses_zmm_registers():
-    """On an AVX-512 CPU the eight float64 lanes are one zmm register: LLVM's default
-    for such Intel CPUs (256-bit vectors, two ymm halves) is overridden."""
+    """On an AVX-512 CPU the float64 lanes go in zmm registers (eight a register): LLVM's
+    default for such Intel CPUs (256-bit vectors, ymm halves) is overridden."""
     fresh, sig = _fresh_sample_packet()
     asm = fresh.inspect_asm(sig)
     name = fresh.overloads[sig].fndesc.llvm_func_name

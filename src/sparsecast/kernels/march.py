@@ -15,7 +15,7 @@ from numba import njit
 from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
-from .packet import PACKET, PACKET_BUFFER, PACKET_SHADED, packet_capable, sample_packet, shade_packet
+from .packet import PACKET, PACKET_BUFFER, PACKET_SHADED, SHADE_LANES, packet_capable, sample_packet, shade_packet
 from .ray import lattice_range
 from .sampler import sample_alpha, sample_color, sample_normal
 from .shade import SHADING_ENABLED, blinn_phong
@@ -131,34 +131,37 @@ def _march_packets(
     while k <= k_end and acc_a < ert:
         sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
         stop = min(k + PACKET, k_end + 1)
-        lanes_shaded = False
-        if shade_lanes:
-            for lane in range(stop - k):
-                if buf[lane] > 0.0:
-                    lanes_shaded = True
-                    break
-            if lanes_shaded:
-                shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz, inv_spacing,
-                             shading, buf)
+        # The lanes in groups of SHADE_LANES: with shading, a group is shaded as the ray
+        # reaches it (none past termination) if a lane of it that is composited (before
+        # `stop`) is visible; a lane left out is empty or never read, so its stale flag
+        # in the buffer is never looked at below.
         lane = 0
         while k < stop and acc_a < ert:
-            a = buf[lane]
-            n_samples += 1
-            if a > 0.0:
-                n_nonempty += 1
-                r = buf[PACKET + lane]
-                g = buf[2 * PACKET + lane]
-                b = buf[3 * PACKET + lane]
-                if shade and not (lanes_shaded and buf[PACKET_SHADED * PACKET + lane] != 0.0):
-                    # a lane near a face (or a volume under 4 voxels a side): one sample
-                    t = k * dt
-                    r, g, b = _shade_sample(
-                        sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,
-                        r, g, b, wdx, wdy, wdz, inv_spacing, shading,
-                    )
-                acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
-            lane += 1
-            k += 1
+            group_end = min(k + SHADE_LANES, stop)
+            if shade_lanes:
+                for probe in range(lane, lane + group_end - k):
+                    if buf[probe] > 0.0:
+                        shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
+                                     inv_spacing, shading, buf[lane:])
+                        break
+            while k < group_end and acc_a < ert:
+                a = buf[lane]
+                n_samples += 1
+                if a > 0.0:
+                    n_nonempty += 1
+                    r = buf[PACKET + lane]
+                    g = buf[2 * PACKET + lane]
+                    b = buf[3 * PACKET + lane]
+                    if shade and not (shade_lanes and buf[PACKET_SHADED * PACKET + lane] != 0.0):
+                        # a lane near a face (or a volume under 4 voxels a side): one sample
+                        t = k * dt
+                        r, g, b = _shade_sample(
+                            sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,
+                            r, g, b, wdx, wdy, wdz, inv_spacing, shading,
+                        )
+                    acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
+                lane += 1
+                k += 1
     return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
 
 

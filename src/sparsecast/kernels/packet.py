@@ -1,9 +1,9 @@
-"""Eight consecutive lattice samples of one ray at once: the SIMD half of the marching loop.
+"""Sixteen consecutive lattice samples of one ray at once: the SIMD half of the marching loop.
 
-:func:`sample_packet` takes lattice samples ``k .. k + 7`` of a ray with the
+:func:`sample_packet` takes lattice samples ``k .. k + PACKET - 1`` of a ray with the
 scalar loop's arithmetic (:func:`.sampler.sample`, :func:`.shade.tf_alpha`,
-:func:`.shade.tf_color`), in a loop over the eight lanes that LLVM vectorises:
-the eight positions, the cell look-ups, the interpolation and the table blend
+:func:`.shade.tf_color`), in a loop over the :data:`PACKET` lanes that LLVM vectorises:
+the positions, the cell look-ups, the interpolation and the table blend
 run as vector instructions. Its reads are adjacent pairs, one load each: the
 trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
 ``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
@@ -14,7 +14,7 @@ no fused multiply-adds, so every lane's floats equal the scalar loop's bit for
 bit. Compositing stays scalar (:func:`.march.march_segment`): it is a running
 product in ``k`` and stops at early ray termination.
 
-Lanes are samples along one ray, not one sample of eight rays, because every
+Lanes are samples along one ray, not one sample of sixteen rays, because every
 index's intervals feed the same marching function: a packet needs nothing from
 the traversal and works for every index, every interval length and early
 termination. A packet that runs past its interval's end, or past the sample
@@ -52,11 +52,18 @@ from .sampler import Nearest, Trilinear, sample
 from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
 from .vectorize import LaneLoopCompiler
 
-__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "packet_capable", "sample_packet", "shade_packet",
+__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "SHADE_LANES", "packet_capable", "sample_packet", "shade_packet",
            "value_packet"]
 
-#: Lanes of a packet: eight float64 lanes are two AVX2 registers (one AVX-512).
-PACKET = 8
+#: Lanes of a packet: sixteen float64 lanes are two AVX-512 registers (four AVX2). Two
+#: registers' worth of independent lanes hide more of a lane's latency (addresses, loads,
+#: table gathers) than one: measured against eight (alternating processes, 512²,
+#: 2026-12-06, Intel Xeon with AVX-512): naive dense-TF frames 1.1-1.2x less CPU, the
+#: deep k-d tree's sparse frames 1.1-1.4x; thirty-two lanes lost again (0.7-1.0x).
+PACKET = 16
+#: Lanes :func:`shade_packet` shades per call: the gradient keeps many values per lane
+#: live, and sixteen at once spilled (shaded frames 0.93-1.02x of eight lanes').
+SHADE_LANES = 8
 # Rows of the lane buffer: opacity, red, green, blue (sample_packet), then shade_packet's
 # interior flag and its scratch.
 _FLAG, _NDL, _LENGTH, _POW, _BASE = 4, 5, 6, 7, 8
@@ -165,7 +172,11 @@ def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
     Lane by lane this is :func:`.shade.blinn_phong` of the field's gradient taken
     by the interior path of :func:`.sample.gradient` (a cell whose six neighbours
     lie inside the volume): the same operations in the same order, so the same
-    floats. A lane whose cell is near a face keeps its straight colour and gets
+    floats. Shades the first :data:`SHADE_LANES` lanes, samples ``k ..``: for the lanes
+    from ``first`` on, the caller passes ``k + first`` and the view ``buf[first:]`` (its
+    rows keep their stride :data:`PACKET`), and skips the groups with no visible lane.
+    (An offset inside the lane loops defeated their vectorisation: frames 2x slower.)
+    A lane whose cell is near a face keeps its straight colour and gets
     ``buf[4 PACKET + lane] = 0`` (an interior lane gets 1): the caller shades it
     one sample at a time. Needs ``nx, ny, nz >= 4``: every read is clamped into
     the interior, so no lane reads outside the volume. Rows 5 to 8 of ``buf``
@@ -178,7 +189,7 @@ def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
     isx = inv_spacing[0]
     isy = inv_spacing[1]
     isz = inv_spacing[2]
-    for lane in range(PACKET):
+    for lane in range(SHADE_LANES):
         t = (k + lane) * dt
         x = ox + t * dx
         y = oy + t * dy
@@ -206,16 +217,16 @@ def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
         n = int(s)
         while n > 0:
             if n & 1:
-                for lane in range(PACKET):
+                for lane in range(SHADE_LANES):
                     buf[_POW * PACKET + lane] *= buf[_BASE * PACKET + lane]
-            for lane in range(PACKET):
+            for lane in range(SHADE_LANES):
                 buf[_BASE * PACKET + lane] *= buf[_BASE * PACKET + lane]
             n >>= 1
     else:
-        for lane in range(PACKET):
+        for lane in range(SHADE_LANES):
             buf[_POW * PACKET + lane] = buf[_NDL * PACKET + lane] ** s
     flat_light = ka + kd
-    for lane in range(PACKET):
+    for lane in range(SHADE_LANES):
         r = buf[PACKET + lane]
         g = buf[2 * PACKET + lane]
         b = buf[3 * PACKET + lane]
