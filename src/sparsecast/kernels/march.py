@@ -131,13 +131,13 @@ def _march_packets(
     while k <= k_end and acc_a < ert:
         sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
         stop = min(k + PACKET, k_end + 1)
-        # The lanes in groups of SHADE_LANES: with shading, a group is shaded as the ray
+        # With shading, the lanes in groups of SHADE_LANES: a group is shaded as the ray
         # reaches it (none past termination) if a lane of it that is composited (before
         # `stop`) is visible; a lane left out is empty or never read, so its stale flag
-        # in the buffer is never looked at below.
+        # in the buffer is never looked at below. Unshaded, the packet is one group.
         lane = 0
         while k < stop and acc_a < ert:
-            group_end = min(k + SHADE_LANES, stop)
+            group_end = min(k + SHADE_LANES, stop) if shade_lanes else stop
             if shade_lanes:
                 for probe in range(lane, lane + group_end - k):
                     if buf[probe] > 0.0:
