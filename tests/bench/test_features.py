@@ -22,11 +22,19 @@ def test_features_section_records_every_case_and_variant():
         assert len(r["ms_runs"]) == 3 and r["ms_min"] <= r["ms"] <= r["ms_max"]
         assert r["max_abs_diff"] <= 1e-5, r  # every variant is exact against naive
         assert r["speedup"] > 0
-    by = {(r["case"], r["variant"]): r for r in renders}
+    by = {(r["case"], r["variant"]): r for r in renders if r["case"] != "clip"}
     # Hiding the big labels and clipping away half take fewer samples (the point of the case).
     assert by["labels", "half"]["samples"] < by["labels", "all"]["samples"]
-    assert by["clip", "half-box"]["samples"] < by["clip", "unclipped"]["samples"]
-    assert by["clip", "half-plane"]["samples"] < by["clip", "unclipped"]["samples"]
+    clip = {(r["method"], r["variant"]): r for r in renders if r["case"] == "clip"}
+    assert {m for m, _ in clip} == set(features.CLIP_INDICES)  # each index against its own unclipped frame
+    for method in features.CLIP_INDICES:
+        base = clip[method, "unclipped"]
+        assert base["speedup"] == 1.0 and base["sample_ratio"] == 1.0
+        for cut in ("half-box", "half-plane"):
+            r = clip[method, cut]
+            assert r["samples"] < base["samples"]
+            assert r["sample_ratio"] == pytest.approx(base["samples"] / r["samples"])
+            assert r["speedup"] == pytest.approx(base["ms"] / r["ms"])
     assert all(by["iso", i]["samples"] < by["iso", "naive"]["samples"] for i in features.ISO_INDICES)
     assert {r["variant"] for r in recs if r.get("phase") == "rebuild"} == {"all", "half"}
     # Shading: each index with the benchmark TF, naive with the dense one; both variants
@@ -57,9 +65,9 @@ def test_features_table_prints_each_record():
 
     rec = dict(section="features", phase="render", dataset="d", case="iso", variant="lbvh", method="lbvh",
                width=8, height=8, ms=2.0, ms_min=1.5, ms_max=3.0, cores_busy=0.9, samples=1234, speedup=4.2,
-               max_abs_diff=0.0)
+               sample_ratio=17.25, max_abs_diff=0.0)
     assert format_features([{**rec, "section": "bih"}]) is None
     console = Console(width=200, record=True)
     console.print(format_features([rec]))
     text = console.export_text()
-    assert "iso" in text and "4.20" in text and "1.5-3.0" in text
+    assert "iso" in text and "4.20" in text and "17.25" in text and "1.5-3.0" in text

@@ -11,8 +11,10 @@ index, camera and image, and each variant's image compared with naive's (the
   ``speedup`` = all / half.
 - ``clip``: every CT / MR volume of the shared data with its benchmark TF, unclipped
   vs a clip box keeping the half ``x <= centre`` (``half-box``) and vs an oblique
-  clip plane through the centre (``half-plane``, normal :data:`PLANE_NORMAL`);
-  ``speedup`` = unclipped / clipped.
+  clip plane through the centre (``half-plane``, normal :data:`PLANE_NORMAL`), for
+  each of :data:`CLIP_INDICES`; ``speedup`` = unclipped / clipped of the same index,
+  ``sample_ratio`` = unclipped / clipped samples (the speed-up a per-sample cost alone
+  would give).
 - ``iso``: the same volumes, an isosurface at 35 % of the value range; ``naive`` vs
   the exact indices (``kdtree-deep``, ``grid-pc``, ``lbvh``); ``speedup`` = naive / ESS.
 - ``shading``: the same volumes, DVR ``shaded`` (Blinn-Phong on the central-difference
@@ -23,7 +25,7 @@ index, camera and image, and each variant's image compared with naive's (the
 
 Records: ``phase="render"``, ``case``, ``variant``, the timing fields of
 :meth:`.timing.Runs.fields` (median, raw runs, min/max, MAD, CPU ms, cores busy),
-``samples`` and ``speedup``.
+``samples``, ``speedup`` and ``sample_ratio`` (the case's base samples / the variant's).
 """
 
 from __future__ import annotations
@@ -40,10 +42,14 @@ from ..volume import Volume
 from .catalog import DATASETS, dense_tf
 from .timing import interleaved
 
-__all__ = ["run", "CT_MR", "ISO_INDICES", "SHADING_INDICES", "label_scene"]
+__all__ = ["run", "CT_MR", "CLIP_INDICES", "ISO_INDICES", "SHADING_INDICES", "label_scene"]
 
 #: the shared CT / MR volumes of the clip and iso cases (skipped when absent)
 CT_MR = ("bonsai", "tooth", "avm-cta", "chest-ct", "headsq", "mni152")
+#: the indices the clip case times clipped against unclipped: the k-d tree, and the
+#: naive marcher (whose samples fall with the clipped length of each ray, the most a
+#: clip can save; an index's samples fall by less where the cut keeps its non-empty part)
+CLIP_INDICES = ("kdtree-deep", "naive")
 #: the exact indices the iso case times against naive
 ISO_INDICES = ("kdtree-deep", "grid-pc", "lbvh")
 #: the indices the shading case times shaded vs unshaded with the benchmark TF (the
@@ -93,11 +99,14 @@ def _frames(variants: dict[str, Callable], repeat: int, warmup: int):
 
 def _emit(record, common: dict, runs, reference, base: str) -> None:
     base_ms = runs[base].fields()["ms"]
+    base_samples = runs[base].result.stats["samples"]
     for variant, r in runs.items():
         f = r.fields()
         img = r.result
-        record(**common, variant=variant, method=img.stats["index"], phase="render", samples=img.stats["samples"],
+        samples = img.stats["samples"]
+        record(**common, variant=variant, method=img.stats["index"], phase="render", samples=samples,
                speedup=base_ms / f["ms"] if variant != base else 1.0,
+               sample_ratio=base_samples / samples if samples else None,
                max_abs_diff=None if reference is None else float(np.abs(img.rgba - reference[variant]).max()),
                **f)
 
@@ -127,12 +136,14 @@ def _clip(name, vol, tf, width, height, repeat, warmup, record) -> None:
     # An oblique plane through the centre: the planes are culled and clipped by other
     # code than the box (a half-space per node corner, an interval per ray).
     plane = [(tuple(float(c) for c in vol.center), PLANE_NORMAL)]
-    index = build_index(vol, tf, "kdtree-deep")
     clips = {"unclipped": {}, "half-box": {"clip_box": box}, "half-plane": {"clip_planes": plane}}
-    variants = {k: (lambda kw=kw: render(vol, tf, cam, width, height, index=index, **kw)) for k, kw in clips.items()}
-    runs = _frames(variants, repeat, warmup)
     reference = {k: render(vol, tf, cam, width, height, index="naive", **kw).rgba for k, kw in clips.items()}
-    _emit(record, dict(dataset=name, case="clip", width=width, height=height), runs, reference, "unclipped")
+    for method in CLIP_INDICES:
+        index = build_index(vol, tf, method)
+        variants = {k: (lambda kw=kw: render(vol, tf, cam, width, height, index=index, **kw))
+                    for k, kw in clips.items()}
+        runs = _frames(variants, repeat, warmup)
+        _emit(record, dict(dataset=name, case="clip", width=width, height=height), runs, reference, "unclipped")
 
 
 def _iso(name, vol, tf, width, height, repeat, warmup, record) -> None:

@@ -126,7 +126,7 @@ def format_features(records: list[dict[str, Any]]):
         return None
     table = Table(title="sparsecast bench: labels, clipping, isosurfaces, shading (interleaved rounds per case)")
     for col in ("dataset", "case", "variant", "index", "size", "ms (median)", "min-max", "cores busy",
-                "M samples", "speed-up", "max |diff| vs naive"):
+                "M samples", "speed-up", "samples ratio", "max |diff| vs naive"):
         table.add_column(col, justify="left" if col in ("dataset", "case", "variant", "index", "size") else "right")
     for r in rows:
         case = str(r.get("case")) + (f" ({r['tf']} TF)" if r.get("tf") else "")
@@ -134,9 +134,11 @@ def format_features(records: list[dict[str, Any]]):
                       f"{r.get('width')}x{r.get('height')}", _fmt(r.get("ms"), ".1f"),
                       f"{_fmt(r.get('ms_min'), '.1f')}-{_fmt(r.get('ms_max'), '.1f')}",
                       _fmt(r.get("cores_busy"), ".2f"), _fmt((r.get("samples") or 0) / 1e6, ".2f"),
-                      _fmt(r.get("speedup"), ".2f"), _fmt(r.get("max_abs_diff"), ".1e"))
-    table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box, iso naive / index, "
-                     "shading shaded / unshaded (on the unshaded row: what shading costs); "
+                      _fmt(r.get("speedup"), ".2f"), _fmt(r.get("sample_ratio"), ".2f"),
+                      _fmt(r.get("max_abs_diff"), ".1e"))
+    table.caption = ("speed-up: labels all / half hidden, clip unclipped / half box (per index), iso naive / "
+                     "index, shading shaded / unshaded (on the unshaded row: what shading costs); samples ratio: "
+                     "the same of the samples taken; "
                      "ratios of medians within one interleaved run")
     return table
 
