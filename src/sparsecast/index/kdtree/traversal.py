@@ -343,15 +343,15 @@ def _start(record, scratch, ray, t_lo, t_hi):
     if cls is KdStackRecord:
 
         def impl(record, scratch, ray, t_lo, t_hi):
-            # List mode: position 0 of the tile's list, its intervals clipped at once
-            # into `spans` (stack pointer -1), or, for a ray parallel to an axis, box
+            # List mode: position 0 of the tile's list, its intervals clipped a run at a
+            # time into `spans` (stack pointer -1), or, for a ray parallel to an axis, box
             # by box (-2); stack mode (the tile's list overflowed): the root on the stack.
             # The scratch tuple is indexed, not unpacked: unpacking it here lost the
             # store of the stack's root (Numba 0.68; next_interval then read garbage).
             ints = scratch[0]
             # The ray's slab inverses, once per ray rather than once per node box
             # (the same floats :func:`clip_box` computes).
-            ox, oy, oz, dx, dy, dz = ray
+            _, _, _, dx, dy, dz = ray
             ix, fx = inverse(dx)
             iy, fy = inverse(dy)
             iz, fz = inverse(dz)
@@ -366,13 +366,8 @@ def _start(record, scratch, ray, t_lo, t_hi):
                     sp = 1
             elif fx or fy or fz:
                 sp = -2
-            else:
-                # The first run of the list; next_interval clips the others as the ray
-                # reaches them (a ray that terminates early never clips the rest).
-                clipped = min(listed, LIST_RUN)
-                clip_box_list(scratch[1], 0, clipped, ox, oy, oz, ix, iy, iz, widening(t_lo, t_hi), t_lo, t_hi,
-                              scratch[2])
-                hits = compact_spans(scratch[2], clipped)  # the leaves the ray meets, in list order
+            # List mode clips nothing yet: next_interval clips the list a run at a time as
+            # the ray reaches it (a ray that terminates early never clips the rest).
             return (0, sp, t_lo, t_hi, ix, iy, iz, fx, fy, fz, hits, clipped)
 
         return impl
@@ -420,8 +415,8 @@ def _next(record, scratch, ray, state, t_covered):
             ints = scratch[0]  # indexed, not unpacked: see _start
             if sp == -1:
                 # The leaves of the tile's list that the ray meets, in the list's
-                # visibility order: clipped and compacted a run at a time (start_ray
-                # the first run), so the runs come in list order too.
+                # visibility order: clipped and compacted a run at a time (the first
+                # on the first call), so the runs come in list order too.
                 spans = scratch[2]
                 listed = ints[0]
                 while j == hits and clipped < listed:
