@@ -11,7 +11,7 @@ import pytest
 from numba import njit, typeof, types
 
 from sparsecast.kernels.march import _shade_sample, march_interval
-from sparsecast.kernels.packet import PACKET, PACKET_BUFFER, sample_packet, value_packet
+from sparsecast.kernels.packet import PACKET, PACKET_BUFFER, sample_packet, shade_packet, value_packet
 from sparsecast.kernels.ray import lattice_range
 from sparsecast.kernels.sampler import Nearest, Trilinear, sample
 from sparsecast.kernels.shade import tf_alpha, tf_color
@@ -202,6 +202,23 @@ def test_lane_loop_uses_zmm_registers():
     start = asm.index(f"\n{name}:")
     body = asm[start:asm.index(".Lfunc_end", start)]
     assert re.search(r"\bv(?:mul|add|sub)pd\b[^\n]*%zmm", body)
+
+
+def test_shading_reads_byte_voxels_as_32_bit_words():
+    """The packets' gradient reads a uint8 volume's voxel pairs as the middle of 32-bit
+    words (:func:`sparsecast.kernels.sample._pair`), which LLVM gathers; 16-bit reads are
+    a scalar load and an insert per lane (any host: the loads' width in the IR)."""
+    sig = (types.uint8[::1], types.int64, types.int64, types.int64, *([types.float64] * 7), types.int64,
+           types.float64, types.float64, types.float64, types.float64[::1], types.float64[::1], types.float64[::1])
+    opts = {k: v for k, v in shade_packet.targetoptions.items() if k not in ("cache", "nopython")}
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(shade_packet.py_func)
+    fresh.compile(sig)
+    name = fresh.overloads[sig].fndesc.llvm_func_name
+    ir = fresh.inspect_llvm(sig)
+    start = ir.index(f"@{name}(")
+    body = ir[start:ir.index("\n}\n", start)]
+    assert not re.search(r"load i16|i16> @llvm\.masked\.gather", body)
+    assert re.search(r"load i32|i32> @llvm\.masked\.gather", body)
 
 
 def test_sample_packet_lanes():

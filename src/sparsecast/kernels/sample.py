@@ -180,7 +180,11 @@ def interior_gradient(flat, sy, sz, b, fx, fy, fz):  # pragma: no cover - replac
     runs along x, one load per run: the four x-lines of four voxels (``i0 - 1 .. i0 + 2``,
     the centre cell's corners among them) and eight pairs ``(i0, i0 + 1)`` for y and z,
     12 loads instead of 32 (8- and 16-bit data; float32 in pairs, 16). Values and
-    arithmetic are the same either way, so the gradient is the same float.
+    arithmetic are the same either way, so the gradient is the same float. For 8-bit
+    data the pairs are read as 32-bit words (:func:`_pair`), so that all 12 loads are
+    gathers in the packets' lane loops: dense-TF shaded frames of the naive marcher
+    1.09-1.18x less CPU (tooth, mni152; 4 alternating pairs of processes, 512²,
+    2026-12-06, Intel Xeon with AVX-512), images identical.
     """
     raise NotImplementedError("interior_gradient is only callable from jitted code")
 
@@ -198,12 +202,36 @@ def _interior_gradient_runs(flat, sy, sz, b, fx, fy, fz):
     m11, c110, c111, p11 = _x_line(flat, b + sz + sy - 1)
     return _central_differences(
         (c000, c001, c010, c011, c100, c101, c110, c111), (m00, m01, m10, m11), (p00, p01, p10, p11),
-        load_run(flat, b - sy, 2) + load_run(flat, b + sz - sy, 2),
-        load_run(flat, b + 2 * sy, 2) + load_run(flat, b + sz + 2 * sy, 2),
-        load_run(flat, b - sz, 2) + load_run(flat, b - sz + sy, 2),
-        load_run(flat, b + 2 * sz, 2) + load_run(flat, b + 2 * sz + sy, 2),
+        _pair(flat, b - sy) + _pair(flat, b + sz - sy),
+        _pair(flat, b + 2 * sy) + _pair(flat, b + sz + 2 * sy),
+        _pair(flat, b - sz) + _pair(flat, b - sz + sy),
+        _pair(flat, b + 2 * sz) + _pair(flat, b + 2 * sz + sy),
         fx, fy, fz,
     )
+
+
+def _pair(flat, a):  # pragma: no cover - replaced by an overload in jitted code
+    """Voxels ``a, a + 1`` of a row along x, from one load. Bytes are read as the middle
+    of the four ``a - 1 .. a + 2`` (the interior path's x-lines span the same columns, so
+    they lie inside the volume): a 32-bit load, which LLVM gathers in the packets' lane
+    loops (:mod:`.packet`), where a 16-bit one is a scalar load and an insert per lane
+    (x86 has no 16-bit gather). Shaded dense-TF frames of a uint8 volume: see
+    :func:`interior_gradient`."""
+    raise NotImplementedError("only callable from jitted code")
+
+
+@overload(_pair, inline="always")
+def _pair_by_type(flat, a):
+    return _pair_of_four if flat.dtype.bitwidth == 8 and run_loadable(flat, 4) else _pair_of_two
+
+
+def _pair_of_four(flat, a):
+    _, v0, v1, _ = load_run(flat, a - 1, 4)
+    return v0, v1
+
+
+def _pair_of_two(flat, a):
+    return load_run(flat, a, 2)
 
 
 def _x_line(flat, a):  # pragma: no cover - replaced by an overload in jitted code
