@@ -140,7 +140,7 @@ def _clip(name, vol, tf, width, height, repeat, warmup, record) -> None:
     reference = {k: render(vol, tf, cam, width, height, index="naive", **kw).rgba for k, kw in clips.items()}
     for method in CLIP_INDICES:
         index = build_index(vol, tf, method)
-        variants = {k: (lambda kw=kw: render(vol, tf, cam, width, height, index=index, **kw))
+        variants = {k: (lambda kw=kw, index=index: render(vol, tf, cam, width, height, index=index, **kw))
                     for k, kw in clips.items()}
         runs = _frames(variants, repeat, warmup)
         _emit(record, dict(dataset=name, case="clip", width=width, height=height), runs, reference, "unclipped")
