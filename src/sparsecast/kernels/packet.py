@@ -31,11 +31,15 @@ mni152 249 -> 180 ms a frame, bonsai 297 -> 208 ms; shaded dense mni152
 577 -> 467 ms, bonsai 696 -> 553 ms; sparse TF 1.3x. In a micro-benchmark of the
 march alone (uint8, rays of about 250 samples) 51 cycles a sample scalar, 34 in
 packets (AVX2 gathers for the corners and the table; the shading's byte reads
-stay scalar loads, which LLVM judged cheaper than gathers). The gradient then read
+were then scalar loads). The gradient then read
 its voxels as runs (:func:`.vectorize.load_run`, 12 loads instead of 32): shaded dense
 mni152 622 -> 478 ms, bonsai 752 -> 528 ms (AMD EPYC, 2 threads, interleaved), shaded
 / unshaded 2.0-2.1. Corner pairs as one load each (:func:`.sample.trilinear_pairs`):
-unshaded dense mni152 271/290 -> 235/250 ms, bonsai 337/342 -> 294/290 ms.
+unshaded dense mni152 271/290 -> 235/250 ms, bonsai 337/342 -> 294/290 ms. A lane's
+read is a gather only when it is 32 or 64 bits wide (x86 has no narrower gather): the
+gradient's byte pairs are now 32-bit reads (:func:`.sample.interior_gradient`), so all
+its loads are gathers; a uint8 volume's trilinear corner pairs are still 16-bit reads,
+a scalar load and an insert per lane.
 """
 
 from __future__ import annotations

@@ -222,7 +222,7 @@ def _pair(flat, a):  # pragma: no cover - replaced by an overload in jitted code
 
 @overload(_pair, inline="always")
 def _pair_by_type(flat, a):
-    return _pair_of_four if flat.dtype.bitwidth == 8 and run_loadable(flat, 4) else _pair_of_two
+    return _pair_of_four if run_loadable(flat, 4) and flat.dtype.bitwidth == 8 else _pair_of_two
 
 
 def _pair_of_four(flat, a):
