@@ -113,12 +113,14 @@ def test_packets_equal_scalar_marching(dtype, sampler, shaded):
 
 
 @pytest.mark.parametrize("dtype", [np.uint8, np.float32])
-@pytest.mark.parametrize("nx", [1, 2, 3])
+@pytest.mark.parametrize("nx", [1, 2, 3, 4, 5])
 @pytest.mark.parametrize("shaded", [False, True], ids=["unshaded", "shaded"])
 def test_packets_on_thin_volumes(dtype, nx, shaded):
     """Under two voxels along x the packets read corners one by one (a pair would run past
-    the row); at two and more in pairs; under four a side they shade lane by lane with the
-    scalar gradient: the scalar loop's floats in every case."""
+    the row), 8-bit ones under four (a word of four would); above that in pairs, 8-bit
+    pairs shifted out of the row's last four voxels in its last two cells; under four a
+    side they shade lane by lane with the scalar gradient: the scalar loop's floats in
+    every case."""
     rng = np.random.default_rng(nx)
     nz, ny = 9, 7
     data = (rng.random((nz, ny, nx)) * 200).astype(dtype)
@@ -136,7 +138,7 @@ def test_packets_on_thin_volumes(dtype, nx, shaded):
     out = _both(Trilinear(), data.reshape(-1), nx, ny, nz, table, 0.0, 64 / 200, np.concatenate([org, d], axis=1),
                 spans, np.ones(3), dt, 0.95, shading)
     assert np.array_equal(out[:, 0], out[:, 1])
-    assert (out[:, 1, 6] > PACKET).sum() > 100  # many rays composited more than a packet
+    assert (out[:, 1, 6] > PACKET).sum() > 50  # many rays composited more than a packet
 
 
 def _packed_double_ops(dispatcher, sig) -> int:
@@ -204,14 +206,28 @@ def test_lane_loop_uses_zmm_registers():
     assert re.search(r"\bv(?:mul|add|sub)pd\b[^\n]*%zmm", body)
 
 
-def test_shading_reads_byte_voxels_as_32_bit_words():
-    """The packets' gradient reads a uint8 volume's voxel pairs as the middle of 32-bit
-    words (:func:`sparsecast.kernels.sample._pair`), which LLVM gathers; 16-bit reads are
-    a scalar load and an insert per lane (any host: the loads' width in the IR)."""
-    sig = (types.uint8[::1], types.int64, types.int64, types.int64, *([types.float64] * 7), types.int64,
-           types.float64, types.float64, types.float64, types.float64[::1], types.float64[::1], types.float64[::1])
-    opts = {k: v for k, v in shade_packet.targetoptions.items() if k not in ("cache", "nopython")}
-    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(shade_packet.py_func)
+_BYTE_SIGS = {
+    "shade_packet": (types.uint8[::1], types.int64, types.int64, types.int64, *([types.float64] * 7), types.int64,
+                     types.float64, types.float64, types.float64, types.float64[::1], types.float64[::1],
+                     types.float64[::1]),
+    "sample_packet": (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
+                      types.float32[:, ::1], types.float64, types.float64, *([types.float64] * 7), types.int64,
+                      types.float64[::1]),
+    "value_packet": (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
+                     *([types.float64] * 7), types.int64, types.float64[::1]),
+}
+
+
+@pytest.mark.parametrize("kernel", [shade_packet, sample_packet, value_packet], ids=lambda k: k.__name__)
+def test_lanes_read_byte_voxels_as_32_bit_words(kernel):
+    """The packets read a uint8 volume's voxel pairs from 32-bit words: the gradient's as
+    the middle of four (:func:`sparsecast.kernels.sample._pair`), the trilinear corners'
+    by a shift (:func:`sparsecast.kernels.sample.trilinear_pairs`), which LLVM gathers;
+    a 16-bit read is a scalar load and an insert per lane (any host: the loads' width
+    in the IR)."""
+    sig = _BYTE_SIGS[kernel.__name__]
+    opts = {k: v for k, v in kernel.targetoptions.items() if k not in ("cache", "nopython")}
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(kernel.py_func)
     fresh.compile(sig)
     name = fresh.overloads[sig].fndesc.llvm_func_name
     ir = fresh.inspect_llvm(sig)

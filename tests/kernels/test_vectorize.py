@@ -1,4 +1,4 @@
-"""``vectorize.load_run``: a run of adjacent items read as one word gives the items' floats."""
+"""``vectorize.load_run`` / ``load_window``: a run of adjacent items read as one word gives the items' floats."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numba import njit, types
 
-from sparsecast.kernels.vectorize import load_run, run_loadable
+from sparsecast.kernels.vectorize import load_run, load_window, run_loadable
 
 
 @njit
@@ -58,3 +58,25 @@ def test_runs_of_a_2d_array_go_in_c_order():
     table = np.random.default_rng(1).random((9, 4)).astype(np.float32)
     for i in range(9):
         assert _row_pairs(table, i) == tuple(float(v) for v in table[i])
+
+
+@njit
+def _windows(flat, starts, skips):
+    out = np.empty((starts.shape[0], 2))
+    for r in range(starts.shape[0]):
+        out[r] = load_window(flat, starts[r], 4, skips[r], 2)
+    return out
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8, np.uint16, np.int16])
+def test_windows_are_the_items_after_the_skip(dtype):
+    """Items ``skip, skip + 1`` of a four-item word, every start and every skip (0-2),
+    extremes included: a wrong shift or a sign lost shows as another item's value."""
+    rng = np.random.default_rng(8)
+    info = np.iinfo(dtype)
+    flat = np.concatenate([[info.min, info.max, 0, -1 if info.min else 1], rng.integers(info.min, info.max, 40)])
+    flat = flat.astype(dtype)
+    starts = np.repeat(np.arange(flat.size - 3), 3)
+    skips = np.tile(np.arange(3), flat.size - 3)
+    want = flat.astype(np.float64)[(starts + skips)[:, None] + np.arange(2)]
+    np.testing.assert_array_equal(_windows(flat, starts, skips), want)

@@ -51,7 +51,7 @@ from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
 from .layout import layout_of
-from .sample import interior_gradient, trilinear_pairs
+from .sample import interior_gradient, pairs_min_nx, trilinear_pairs
 from .sampler import Nearest, Trilinear, sample
 from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
 from .vectorize import LaneLoopCompiler
@@ -108,7 +108,7 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
     """
     # Two copies of the lane loop, the test between them: a branch on nx inside the
     # loop kept LLVM from vectorising it as well (1.2-1.5x slower).
-    if nx >= 2:
+    if nx >= pairs_min_nx(flat):
         for lane in range(PACKET):
             t = (k + lane) * dt
             v = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
@@ -129,7 +129,7 @@ def value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
     isosurface pair test, :func:`.iso.iso_interval`, reads its samples from here).
     Arguments as for :func:`sample_packet`; ``buf`` must not overlap ``flat``.
     """
-    if nx >= 2:  # two copies of the lane loop, as in sample_packet
+    if nx >= pairs_min_nx(flat):  # two copies of the lane loop, as in sample_packet
         for lane in range(PACKET):
             t = (k + lane) * dt
             buf[lane] = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
@@ -149,7 +149,7 @@ def _classify(table, v, v_lo, scale, lane, buf):
 
 
 def _lane_sample(sampler, flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by an overload in jitted code
-    """:func:`.sampler.sample` for ``nx >= 2``: trilinear samples read their corners in
+    """:func:`.sampler.sample` for ``nx >= pairs_min_nx(flat)``: trilinear samples read their corners in
     pairs along x (:func:`.sample.trilinear_pairs`), nearest ones as any sample."""
     raise NotImplementedError("only callable from jitted code")
 

@@ -6,7 +6,7 @@ from numba import njit
 from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
-from .vectorize import load_run, run_loadable
+from .vectorize import load_run, load_window, run_loadable
 
 
 @njit(cache=True, inline="always")
@@ -86,19 +86,61 @@ def cell_values(flat, nx, ny, i0, i1, j0, j1, k0, k1):
 
 
 def trilinear_pairs(flat, nx, ny, nz, x, y, z):  # pragma: no cover - replaced by an overload in jitted code
-    """:func:`trilinear` for volumes of at least two voxels along x, reading each pair of
-    corners along x with one load where the dtype allows (:func:`.vectorize.run_loadable`):
-    4 loads instead of 8, the same values, so the same float. The caller makes sure
-    ``nx >= 2`` (then ``i0 + 1 <= nx - 1``): the packets' lane loop
+    """:func:`trilinear` for volumes of at least :func:`pairs_min_nx` voxels along x,
+    reading each pair of corners along x with one load where the dtype allows
+    (:func:`.vectorize.run_loadable`): 4 loads instead of 8, the same values, so the same
+    float. The caller makes sure ``nx >= pairs_min_nx(flat)``: the packets' lane loop
     (:func:`.packet.sample_packet`) tests it once outside the loop; the test inside the
     lane loop made it 1.2-1.5x slower than item reads.
+
+    8-bit pairs are read from 32-bit words: x86 gathers 32- and 64-bit items only, so a
+    16-bit read in a vectorised lane loop is a scalar load and an insert per lane. The
+    word is the row's four voxels from ``s = min(i0, nx - 4)`` (inside the row, hence
+    ``nx >= 4``), the pair picked by a shift of ``i0 - s`` voxels (nonzero in the row's
+    last two cells only).
     """
     raise NotImplementedError("trilinear_pairs is only callable from jitted code")
 
 
+def pairs_min_nx(flat):  # pragma: no cover - replaced by an overload in jitted code
+    """The fewest voxels along x for which :func:`trilinear_pairs` may read voxels of
+    Numba type ``flat``: 4 for 8-bit data (its words of four voxels), else 2. A constant
+    in jitted code, so a test of ``nx`` against it costs one comparison."""
+    raise NotImplementedError("pairs_min_nx is only callable from jitted code")
+
+
+def _byte_words(flat) -> bool:
+    # 8-bit voxels, whose pairs trilinear_pairs reads from words of four
+    return run_loadable(flat, 4) and flat.dtype.bitwidth == 8
+
+
+@overload(pairs_min_nx, inline="always")
+def _pairs_min_nx(flat):
+    least = 4 if _byte_words(flat) else 2
+    return lambda flat: least
+
+
 @overload(trilinear_pairs, inline="always")
 def _trilinear_pairs(flat, nx, ny, nz, x, y, z):
+    if _byte_words(flat):
+        return _trilinear_word_loads
     return _trilinear_pair_loads if run_loadable(flat, 2) else _trilinear_item_loads
+
+
+def _trilinear_word_loads(flat, nx, ny, nz, x, y, z):
+    i0, _, fx = _axis(x, nx)
+    j0, _, fy = _axis(y, ny)
+    k0, _, fz = _axis(z, nz)
+    sy = nx if ny > 1 else 0  # as in _trilinear_pair_loads
+    sz = nx * ny if nz > 1 else 0
+    s = min(i0, nx - 4)
+    skip = i0 - s
+    a = (k0 * ny + j0) * nx + s
+    v000, v001 = load_window(flat, a, 4, skip, 2)
+    v010, v011 = load_window(flat, a + sy, 4, skip, 2)
+    v100, v101 = load_window(flat, a + sz, 4, skip, 2)
+    v110, v111 = load_window(flat, a + sz + sy, 4, skip, 2)
+    return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
 
 
 def _trilinear_pair_loads(flat, nx, ny, nz, x, y, z):
@@ -222,7 +264,7 @@ def _pair(flat, a):  # pragma: no cover - replaced by an overload in jitted code
 
 @overload(_pair, inline="always")
 def _pair_by_type(flat, a):
-    return _pair_of_four if run_loadable(flat, 4) and flat.dtype.bitwidth == 8 else _pair_of_two
+    return _pair_of_four if _byte_words(flat) else _pair_of_two
 
 
 def _pair_of_four(flat, a):

@@ -31,7 +31,7 @@ from numba.core.compiler_machinery import register_pass
 from numba.core.typed_passes import NativeLowering
 from numba.extending import intrinsic
 
-__all__ = ["LaneLoopCompiler", "PREFER_VECTOR_WIDTH", "lane_buffer", "load_run", "run_loadable"]
+__all__ = ["LaneLoopCompiler", "PREFER_VECTOR_WIDTH", "lane_buffer", "load_run", "load_window", "run_loadable"]
 
 
 #: the vector width (bits) the lane loops ask LLVM's x86 back end for (function attribute
@@ -152,17 +152,62 @@ def load_run(typingctx, flat, i, n):
         word_t = ir.IntType(bits * count)
         item_t = ir.IntType(bits)
         word = builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
-        f64 = ir.DoubleType()
         values = []
         for j in range(count):
             part = builder.trunc(builder.lshr(word, ir.Constant(word_t, j * bits)) if j else word, item_t)
-            if dt == types.float32:
-                v = builder.bitcast(part, ir.FloatType())
-            elif dt.signed:
-                v = builder.sitofp(part, f64)
-            else:
-                v = builder.uitofp(part, f64)
-            values.append(v)
+            values.append(_item_float(builder, part, dt))
         return context.make_tuple(builder, ret, values)
 
     return ret(flat, i, n), codegen
+
+
+@intrinsic
+def load_window(typingctx, flat, i, n, skip, m):
+    """``(float(flat[i + skip]), ..., float(flat[i + skip + m - 1]))`` from the one load of
+    :func:`load_run` ``(flat, i, n)``.
+
+    ``skip`` is a run-time integer in ``[0, n - m]`` (not checked: a larger one shifts
+    the word by its width or more, which LLVM leaves undefined); ``n`` and ``m`` are
+    literals. The items are taken out by a shift of ``skip`` items, which in a vectorised
+    lane loop is one variable shift per vector: a caller that must keep a wide read inside
+    a row (:func:`.sample.trilinear_pairs` on 8-bit voxels) moves the word's start and
+    picks its items by ``skip``. Values and types as for :func:`load_run`.
+    """
+    if not all(isinstance(v, types.IntegerLiteral) for v in (n, m)):
+        return None
+    if not (isinstance(i, types.Integer) and isinstance(skip, types.Integer)):
+        return None
+    count, take = n.literal_value, m.literal_value
+    if not (run_loadable(flat, count) and 0 < take <= count):
+        return None
+    dt = flat.dtype
+    bits = dt.bitwidth
+    ret = types.UniTuple(types.float32 if dt == types.float32 else types.float64, take)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        index = context.cast(builder, args[1], signature.args[1], types.intp)
+        item = cgutils.gep_inbounds(builder, ary.data, index)
+        word_t = ir.IntType(bits * count)
+        item_t = ir.IntType(bits)
+        word = builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
+        skip_v = context.cast(builder, args[3], signature.args[3], types.intp)
+        skip_w = builder.trunc(skip_v, word_t) if word_t.width < 64 else skip_v
+        shift = builder.mul(skip_w, ir.Constant(word_t, bits))
+        word = builder.lshr(word, shift)
+        values = []
+        for j in range(take):
+            part = builder.trunc(builder.lshr(word, ir.Constant(word_t, j * bits)) if j else word, item_t)
+            values.append(_item_float(builder, part, dt))
+        return context.make_tuple(builder, ret, values)
+
+    return ret(flat, i, n, skip, m), codegen
+
+
+def _item_float(builder, part, dt):
+    """An item's bits as Numba's ``float()`` of it: float32 stays float32, integers become float64."""
+    if dt == types.float32:
+        return builder.bitcast(part, ir.FloatType())
+    if dt.signed:
+        return builder.sitofp(part, ir.DoubleType())
+    return builder.uitofp(part, ir.DoubleType())
