@@ -38,8 +38,8 @@ mni152 622 -> 478 ms, bonsai 752 -> 528 ms (AMD EPYC, 2 threads, interleaved), s
 unshaded dense mni152 271/290 -> 235/250 ms, bonsai 337/342 -> 294/290 ms. A lane's
 read is a gather only when it is 32 or 64 bits wide (x86 has no narrower gather): the
 gradient's byte pairs are now 32-bit reads (:func:`.sample.interior_gradient`), so all
-its loads are gathers; a uint8 volume's trilinear corner pairs are still 16-bit reads,
-a scalar load and an insert per lane.
+its loads are gathers, and so are a uint8 volume's trilinear corner pairs
+(:func:`.sample.trilinear_pairs`: 32-bit words and a shift).
 """
 
 from __future__ import annotations
