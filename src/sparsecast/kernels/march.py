@@ -15,7 +15,7 @@ from numba import njit
 from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
-from .packet import PACKET, PACKET_BUFFER, SHADE_LANES, packet_capable, sample_packet, shade_packet
+from .packet import PACKET, PACKET_BUFFER, PACKET_SHADED, SHADE_LANES, packet_capable, sample_packet, shade_packet
 from .ray import lattice_range
 from .sampler import sample_alpha, sample_color, sample_normal
 from .shade import SHADING_ENABLED, blinn_phong
@@ -133,8 +133,8 @@ def _march_packets(
         stop = min(k + PACKET, k_end + 1)
         # With shading, the lanes in groups of SHADE_LANES: a group is shaded as the ray
         # reaches it (none past termination) if a lane of it that is composited (before
-        # `stop`) is visible; a lane left out is empty or never read. Unshaded, the packet
-        # is one group.
+        # `stop`) is visible; a lane left out is empty or never read, so its stale flag
+        # in the buffer is never looked at below. Unshaded, the packet is one group.
         lane = 0
         while k < stop and acc_a < ert:
             group_end = min(k + SHADE_LANES, stop) if shade_lanes else stop
@@ -152,8 +152,8 @@ def _march_packets(
                     r = buf[PACKET + lane]
                     g = buf[2 * PACKET + lane]
                     b = buf[3 * PACKET + lane]
-                    if shade and not shade_lanes:
-                        # a volume under 4 voxels a side: one sample at a time
+                    if shade and not (shade_lanes and buf[PACKET_SHADED * PACKET + lane] != 0.0):
+                        # a lane near a face (or a volume under 4 voxels a side): one sample
                         t = k * dt
                         r, g, b = _shade_sample(
                             sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,

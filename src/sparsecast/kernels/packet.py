@@ -22,9 +22,9 @@ where the ray terminates, computes lanes that are never composited (nor counted
 as samples); their positions stay within a few steps of the volume, and every
 read is clamped into it as for any sample.
 
-With shading, :func:`shade_packet` shades the lanes the same way: the
-central-difference gradient (:func:`.sample.gradient`, its interior path and, for
-lanes near a face, its clamped one) and Blinn-Phong, lane by lane.
+With shading, :func:`shade_packet` shades the lanes the same way: the interior
+path of the central-difference gradient and Blinn-Phong, lane by lane; lanes
+near a face are left to the scalar :func:`.sample.gradient`.
 
 Measured (interleaved, naive, 512², 2 threads; 2026-12-03): unshaded dense TF
 mni152 249 -> 180 ms a frame, bonsai 297 -> 208 ms; shaded dense mni152
@@ -51,12 +51,13 @@ from numba.extending import overload
 
 from .borrow import NO_REFCOUNT
 from .layout import layout_of
-from .sample import clamp_point, interior_gradient, pairs_min_nx, trilinear_pairs
+from .sample import interior_gradient, pairs_min_nx, trilinear_pairs
 from .sampler import Nearest, Trilinear, sample
 from .shade import SHADING_KA, SHADING_KD, SHADING_KS, SHADING_SHININESS, tf_rgba
 from .vectorize import LaneLoopCompiler
 
-__all__ = ["PACKET", "PACKET_BUFFER", "SHADE_LANES", "packet_capable", "sample_packet", "shade_packet", "value_packet"]
+__all__ = ["PACKET", "PACKET_BUFFER", "PACKET_SHADED", "SHADE_LANES", "packet_capable", "sample_packet", "shade_packet",
+           "value_packet"]
 
 #: Lanes of a packet: sixteen float64 lanes are two AVX-512 registers (four AVX2). Two
 #: registers' worth of independent lanes hide more of a lane's latency (addresses, loads,
@@ -68,8 +69,10 @@ PACKET = 16
 #: live, and sixteen at once spilled (shaded frames 0.93-1.02x of eight lanes').
 SHADE_LANES = 8
 # Rows of the lane buffer: opacity, red, green, blue (sample_packet), then shade_packet's
-# scratch (a lane's interior flag, its lighting terms).
+# interior flag and its scratch.
 _FLAG, _NDL, _LENGTH, _POW, _BASE = 4, 5, 6, 7, 8
+#: Row of the lane buffer where :func:`shade_packet` marks the lanes it shaded (1.0).
+PACKET_SHADED = _FLAG
 #: Length of the lane buffer of :func:`sample_packet` and :func:`shade_packet`.
 PACKET_BUFFER = 9 * PACKET
 
@@ -170,15 +173,18 @@ def _lane_any(sampler, flat, nx, ny, nz, x, y, z):
 def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz, inv_spacing, shading, buf):
     """Shade the colours of a packet's lanes in ``buf`` in place (see :func:`sample_packet`).
 
-    Lane by lane this is :func:`.shade.blinn_phong` of the field's gradient as
-    :func:`.sample.gradient` takes it (its interior path where the cell's six neighbours
-    lie inside the volume, else its clamped one): the same operations in the same
-    order, so the same floats. Shades the first :data:`SHADE_LANES` lanes, samples ``k ..``: for the lanes
+    Lane by lane this is :func:`.shade.blinn_phong` of the field's gradient taken
+    by the interior path of :func:`.sample.gradient` (a cell whose six neighbours
+    lie inside the volume): the same operations in the same order, so the same
+    floats. Shades the first :data:`SHADE_LANES` lanes, samples ``k ..``: for the lanes
     from ``first`` on, the caller passes ``k + first`` and the view ``buf[first:]`` (its
     rows keep their stride :data:`PACKET`), and skips the groups with no visible lane.
     (An offset inside the lane loops defeated their vectorisation: frames 2x slower.)
-    Needs ``nx, ny, nz >= 4``: every read is clamped into the volume, so no lane
-    reads outside it. Rows 4 to 8 of ``buf`` are scratch.
+    A lane whose cell is near a face keeps its straight colour and gets
+    ``buf[4 PACKET + lane] = 0`` (an interior lane gets 1): the caller shades it
+    one sample at a time. Needs ``nx, ny, nz >= 4``: every read is clamped into
+    the interior, so no lane reads outside the volume. Rows 5 to 8 of ``buf``
+    are scratch.
     """
     ka = shading[SHADING_KA]
     kd = shading[SHADING_KD]
@@ -209,27 +215,6 @@ def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
         buf[_LENGTH * PACKET + lane] = length
         buf[_POW * PACKET + lane] = 1.0
         buf[_BASE * PACKET + lane] = ndl
-    # Lanes near a face take the gradient by six clamped samples (sample.gradient_clamped,
-    # whose trilinear samples trilinear_pairs reads the same), all lanes at once and kept
-    # where the lane is not interior: a separate loop, so the interior one keeps its
-    # registers. Lane by lane with the scalar gradient, these few lanes (the first and
-    # last voxel layers a ray crosses) cost 11-13 % of a dense shaded frame (tooth, 512²).
-    interior = 0.0
-    for lane in range(SHADE_LANES):
-        interior += buf[_FLAG * PACKET + lane]
-    if interior < SHADE_LANES:
-        for lane in range(SHADE_LANES):
-            t = (k + lane) * dt
-            gx, gy, gz = _clamped_gradient(flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
-            gx = gx * isx
-            gy = gy * isy
-            gz = gz * isz
-            length = math.sqrt(gx * gx + gy * gy + gz * gz)
-            ndl = abs(gx * wdx + gy * wdy + gz * wdz) / length
-            if buf[_FLAG * PACKET + lane] == 0.0:
-                buf[_NDL * PACKET + lane] = ndl
-                buf[_LENGTH * PACKET + lane] = length
-                buf[_BASE * PACKET + lane] = ndl
     # ndl ** s as shade._power takes it: by squaring for whole s up to 1024 (the loop
     # over the exponent's bits outside the lanes, so that the lane loops vectorise).
     if 0.0 <= s <= 1024.0 and s == math.floor(s):
@@ -256,18 +241,7 @@ def shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
             sr, sg, sb = min(r * flat_light, 1.0), min(g * flat_light, 1.0), min(b * flat_light, 1.0)
         else:
             sr, sg, sb = min(r * diff + spec, 1.0), min(g * diff + spec, 1.0), min(b * diff + spec, 1.0)
-        buf[PACKET + lane] = sr
-        buf[2 * PACKET + lane] = sg
-        buf[3 * PACKET + lane] = sb
-
-
-@njit(cache=True, inline="always")
-def _clamped_gradient(flat, nx, ny, nz, x, y, z):
-    """:func:`.sample.gradient_clamped` with its six samples read by
-    :func:`.sample.trilinear_pairs` (the same floats; ``nx >= pairs_min_nx``)."""
-    x0, y0, z0 = clamp_point(x - 1.0, y - 1.0, z - 1.0, nx, ny, nz)
-    x1, y1, z1 = clamp_point(x + 1.0, y + 1.0, z + 1.0, nx, ny, nz)
-    gx = 0.5 * (trilinear_pairs(flat, nx, ny, nz, x1, y, z) - trilinear_pairs(flat, nx, ny, nz, x0, y, z))
-    gy = 0.5 * (trilinear_pairs(flat, nx, ny, nz, x, y1, z) - trilinear_pairs(flat, nx, ny, nz, x, y0, z))
-    gz = 0.5 * (trilinear_pairs(flat, nx, ny, nz, x, y, z1) - trilinear_pairs(flat, nx, ny, nz, x, y, z0))
-    return gx, gy, gz
+        if buf[_FLAG * PACKET + lane] != 0.0:
+            buf[PACKET + lane] = sr
+            buf[2 * PACKET + lane] = sg
+            buf[3 * PACKET + lane] = sb

@@ -131,7 +131,8 @@ def _trilinear_word_loads(flat, nx, ny, nz, x, y, z):
     i0, _, fx = _axis(x, nx)
     j0, _, fy = _axis(y, ny)
     k0, _, fz = _axis(z, nz)
-    sy, sz = _strides(nx, ny, nz)
+    sy = nx if ny > 1 else 0  # as in _trilinear_pair_loads
+    sz = nx * ny if nz > 1 else 0
     s = min(i0, nx - 4)
     skip = i0 - s
     a = (k0 * ny + j0) * nx + s
@@ -149,22 +150,14 @@ def _trilinear_pair_loads(flat, nx, ny, nz, x, y, z):
     # The cell's upper voxels are one row / one slice on (none on an axis of one
     # voxel, see _axis): the four rows' addresses from one product, where four
     # products per lane (64-bit vector multiplies, slow) were computed before.
-    sy, sz = _strides(nx, ny, nz)
+    sy = nx if ny > 1 else 0
+    sz = nx * ny if nz > 1 else 0
     a = (k0 * ny + j0) * nx + i0
     v000, v001 = load_run(flat, a, 2)
     v010, v011 = load_run(flat, a + sy, 2)
     v100, v101 = load_run(flat, a + sz, 2)
     v110, v111 = load_run(flat, a + sz + sy, 2)
     return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
-
-
-@njit(cache=True, inline="always")
-def _strides(nx, ny, nz):
-    """Steps from a cell's lower corner to its upper row and slice: ``nx`` and ``nx * ny``,
-    or 0 on an axis of one voxel. Without branches: the phi nodes of a conditional
-    expression, inlined several times into one kernel, tripped Numba's check of
-    variable scopes (``NumbaIRAssumptionWarning``)."""
-    return nx * min(ny - 1, 1), nx * ny * min(nz - 1, 1)
 
 
 def _trilinear_item_loads(flat, nx, ny, nz, x, y, z):
