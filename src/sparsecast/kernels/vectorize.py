@@ -142,21 +142,11 @@ def load_run(typingctx, flat, i, n):
     if not run_loadable(flat, count):
         return None
     dt = flat.dtype
-    bits = dt.bitwidth
     ret = types.UniTuple(types.float32 if dt == types.float32 else types.float64, count)
 
     def codegen(context, builder, signature, args):
-        ary = context.make_array(signature.args[0])(context, builder, args[0])
-        index = context.cast(builder, args[1], signature.args[1], types.intp)
-        item = cgutils.gep_inbounds(builder, ary.data, index)
-        word_t = ir.IntType(bits * count)
-        item_t = ir.IntType(bits)
-        word = builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
-        values = []
-        for j in range(count):
-            part = builder.trunc(builder.lshr(word, ir.Constant(word_t, j * bits)) if j else word, item_t)
-            values.append(_item_float(builder, part, dt))
-        return context.make_tuple(builder, ret, values)
+        word = _load_word(context, builder, signature, args, count)
+        return context.make_tuple(builder, ret, _word_items(builder, word, dt, count))
 
     return ret(flat, i, n), codegen
 
@@ -185,23 +175,31 @@ def load_window(typingctx, flat, i, n, skip, m):
     ret = types.UniTuple(types.float32 if dt == types.float32 else types.float64, take)
 
     def codegen(context, builder, signature, args):
-        ary = context.make_array(signature.args[0])(context, builder, args[0])
-        index = context.cast(builder, args[1], signature.args[1], types.intp)
-        item = cgutils.gep_inbounds(builder, ary.data, index)
-        word_t = ir.IntType(bits * count)
-        item_t = ir.IntType(bits)
-        word = builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
+        word = _load_word(context, builder, signature, args, count)
         skip_v = context.cast(builder, args[3], signature.args[3], types.intp)
-        skip_w = builder.trunc(skip_v, word_t) if word_t.width < 64 else skip_v
-        shift = builder.mul(skip_w, ir.Constant(word_t, bits))
-        word = builder.lshr(word, shift)
-        values = []
-        for j in range(take):
-            part = builder.trunc(builder.lshr(word, ir.Constant(word_t, j * bits)) if j else word, item_t)
-            values.append(_item_float(builder, part, dt))
-        return context.make_tuple(builder, ret, values)
+        skip_w = builder.trunc(skip_v, word.type) if word.type.width < 64 else skip_v
+        word = builder.lshr(word, builder.mul(skip_w, ir.Constant(word.type, bits)))
+        return context.make_tuple(builder, ret, _word_items(builder, word, dt, take))
 
     return ret(flat, i, n, skip, m), codegen
+
+
+def _load_word(context, builder, signature, args, count):
+    """The ``count`` items of ``args[0]`` from item ``args[1]`` on, loaded as one integer."""
+    ary = context.make_array(signature.args[0])(context, builder, args[0])
+    index = context.cast(builder, args[1], signature.args[1], types.intp)
+    item = cgutils.gep_inbounds(builder, ary.data, index)
+    word_t = ir.IntType(signature.args[0].dtype.bitwidth * count)
+    return builder.load(builder.bitcast(item, word_t.as_pointer()), align=1, typ=word_t)
+
+
+def _word_items(builder, word, dt, count):
+    """The first ``count`` items of a loaded word, each as :func:`_item_float` gives it."""
+    bits = dt.bitwidth
+    item_t = ir.IntType(bits)
+    return [_item_float(builder, builder.trunc(builder.lshr(word, ir.Constant(word.type, j * bits)) if j else word,
+                                               item_t), dt)
+            for j in range(count)]
 
 
 def _item_float(builder, part, dt):
