@@ -167,6 +167,23 @@ def test_lane_loop_is_vectorised():
     assert _packed_double_ops(control, sig) == 0
 
 
+@pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"),
+                    reason="counts x86 packed-double instructions in the assembly")
+def test_marcher_inlines_the_vectorised_lane_loop():
+    """sample_packet is inlined into march_interval (no call per packet), and its lane
+    loop still compiles to packed double arithmetic there."""
+    f64, i64 = types.float64, types.int64
+    sig = (typeof(Trilinear()), types.uint8[::1], i64, i64, i64, types.float32[:, ::1], f64, f64,
+           *([f64] * 9), types.float64[::1], f64, f64, f64, i64, i64, *([f64] * 5), types.float64[::1])
+    opts = {k: v for k, v in march_interval.targetoptions.items() if k not in ("cache", "nopython")}
+    # uncached (a cached copy keeps no assembly), with its pipeline (not in targetoptions)
+    fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(march_interval.py_func)
+    fresh.compile(sig)
+    assert _packed_double_ops(fresh, sig) >= 7  # at least the trilinear interpolation's multiplies
+    asm = fresh.inspect_asm(sig)
+    assert "sample_packet" not in asm  # no call left
+
+
 def _avx512() -> bool:
     import llvmlite.binding as ll
 

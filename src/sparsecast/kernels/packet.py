@@ -86,7 +86,9 @@ def packet_capable(sampler, flat) -> bool:
             and isinstance(flat, types.Array) and isinstance(flat.dtype, (types.Integer, types.Float)))
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
+# Inlined into the marcher (march.march_interval, compiled with the same pipeline): the
+# call per packet weighed on frames of short segments.
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, inline="always", **NO_REFCOUNT)
 def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf):
     """Classify lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf``.
 
