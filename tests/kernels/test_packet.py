@@ -21,7 +21,8 @@ from sparsecast.kernels.vectorize import LaneLoopCompiler
 @njit
 def _scalar_march(sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wd, inv_spacing, dt, t0, t1, k_next, k_max,
                   ert, shading):
-    """The marching loop one sample at a time (what march_segment did before packets)."""
+    """The marching loop one sample at a time (what march_segment did before packets),
+    compositing on the transmittance as the marcher does (march.over_trans)."""
     ox, oy, oz, dx, dy, dz = ray
     k0, k1 = lattice_range(t0, t1, dt)
     k0 = max(k0, k_next)
@@ -31,8 +32,9 @@ def _scalar_march(sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wd, inv_sp
         return acc_r, acc_g, acc_b, acc_a, k_next, 0, 0
     ns = 0
     nne = 0
+    trans = 1.0
     k = k0
-    while k <= k1 and acc_a < ert:
+    while k <= k1 and trans > 1.0 - ert:
         t = k * dt
         x = ox + t * dx
         y = oy + t * dy
@@ -45,13 +47,13 @@ def _scalar_march(sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wd, inv_sp
             if shading[0] != 0.0:
                 r, g, b = _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b,
                                         wd[0], wd[1], wd[2], inv_spacing, shading)
-            w = (1.0 - acc_a) * a
+            w = trans * a
             acc_r += w * r
             acc_g += w * g
             acc_b += w * b
-            acc_a += w
+            trans *= 1.0 - a
         k += 1
-    return acc_r, acc_g, acc_b, acc_a, k, ns, nne
+    return acc_r, acc_g, acc_b, 1.0 - trans, k, ns, nne
 
 
 @njit

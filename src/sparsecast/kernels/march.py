@@ -36,6 +36,24 @@ def over(acc_r, acc_g, acc_b, acc_a, r, g, b, a):
     return acc_r + w * r, acc_g + w * g, acc_b + w * b, acc_a + w
 
 
+@njit(cache=True, inline="always")
+def over_trans(acc_r, acc_g, acc_b, trans, r, g, b, a):
+    """:func:`over` on the transmittance ``trans = 1 - acc_a``: what the marching loops carry.
+
+    The loops composite one sample after another, so the step's latency is the
+    loop's floor: ``acc_a + (1 - acc_a) a`` is a subtraction, a product and a sum in
+    a row (about 12 cycles in float64), ``trans (1 - a)`` one product (``1 - a`` does
+    not wait for the previous sample). The same quantity up to rounding (the
+    NumPy reference composites :func:`over`'s way; images agree to ~1e-16), and
+    every index marches through these loops, so all of them take the same floats.
+    Measured (alternating processes, one thread, 512², dense TF, naive): 1.08-1.09x
+    less CPU by minima on tooth, bonsai and headsq; sparse-TF k-d frames, which
+    composite few samples, unchanged.
+    """
+    w = trans * a
+    return acc_r + w * r, acc_g + w * g, acc_b + w * b, trans * (1.0 - a)
+
+
 @njit(cache=True, **NO_REFCOUNT)
 def _shade_sample(sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz, inv_spacing,
                   shading):
@@ -127,8 +145,12 @@ def _march_packets(
     # Shading in packets clamps every lane's reads into the interior (4 voxels a side).
     shade_lanes = shade and nx >= 4 and ny >= 4 and nz >= 4
     buf = lane_buffer(PACKET_BUFFER)
+    # The transmittance, not the opacity, across the loop (over_trans); `trans > t_stop` is
+    # `trans > t_stop`.
+    trans = 1.0 - acc_a
+    t_stop = 1.0 - ert
     k = k_begin
-    while k <= k_end and acc_a < ert:
+    while k <= k_end and trans > t_stop:
         sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
         stop = min(k + PACKET, k_end + 1)
         # With shading, the lanes in groups of SHADE_LANES: a group is shaded as the ray
@@ -136,7 +158,7 @@ def _march_packets(
         # `stop`) is visible; a lane left out is empty or never read, so its stale flag
         # in the buffer is never looked at below. Unshaded, the packet is one group.
         lane = 0
-        while k < stop and acc_a < ert:
+        while k < stop and trans > t_stop:
             group_end = min(k + SHADE_LANES, stop) if shade_lanes else stop
             if shade_lanes:
                 for probe in range(lane, lane + group_end - k):
@@ -144,7 +166,7 @@ def _march_packets(
                         shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
                                      inv_spacing, shading, buf[lane:])
                         break
-            while k < group_end and acc_a < ert:
+            while k < group_end and trans > t_stop:
                 a = buf[lane]
                 n_samples += 1
                 if a > 0.0:
@@ -159,10 +181,10 @@ def _march_packets(
                             sampler, flat, nx, ny, nz, table, v_lo, scale, ox + t * dx, oy + t * dy, oz + t * dz,
                             r, g, b, wdx, wdy, wdz, inv_spacing, shading,
                         )
-                    acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
+                    acc_r, acc_g, acc_b, trans = over_trans(acc_r, acc_g, acc_b, trans, r, g, b, a)
                 lane += 1
                 k += 1
-    return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
+    return acc_r, acc_g, acc_b, 1.0 - trans, k, n_samples, n_nonempty
 
 
 def _march_one_by_one(
@@ -177,8 +199,10 @@ def _march_one_by_one(
     n_samples = 0
     n_nonempty = 0
     shade = shading[SHADING_ENABLED] != 0.0
+    trans = 1.0 - acc_a  # see _march_packets
+    t_stop = 1.0 - ert
     k = k_begin
-    while k <= k_end and acc_a < ert:
+    while k <= k_end and trans > t_stop:
         t = k * dt
         x = ox + t * dx
         y = oy + t * dy
@@ -193,9 +217,9 @@ def _march_one_by_one(
                     sampler, flat, nx, ny, nz, table, v_lo, scale, x, y, z, r, g, b, wdx, wdy, wdz,
                     inv_spacing, shading,
                 )
-            acc_r, acc_g, acc_b, acc_a = over(acc_r, acc_g, acc_b, acc_a, r, g, b, a)
+            acc_r, acc_g, acc_b, trans = over_trans(acc_r, acc_g, acc_b, trans, r, g, b, a)
         k += 1
-    return acc_r, acc_g, acc_b, acc_a, k, n_samples, n_nonempty
+    return acc_r, acc_g, acc_b, 1.0 - trans, k, n_samples, n_nonempty
 
 
 # Not inlined (see index.interval, "Inlining"): called once per interval, and its
