@@ -34,7 +34,7 @@ def _scalar_march(sampler, flat, nx, ny, nz, table, v_lo, scale, ray, wd, inv_sp
     nne = 0
     trans = 1.0
     k = k0
-    while k <= k1 and trans > 1.0 - ert:
+    while k <= k1 and 1.0 - trans < ert:
         t = k * dt
         x = ox + t * dx
         y = oy + t * dy

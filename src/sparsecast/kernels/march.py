@@ -153,12 +153,13 @@ def _march_packets(
     # Shading in packets clamps every lane's reads into the interior (4 voxels a side).
     shade_lanes = shade and nx >= 4 and ny >= 4 and nz >= 4
     buf = lane_buffer(PACKET_BUFFER)
-    # The transmittance, not the opacity, across the loop (over_trans); `acc_a < ert` is
-    # `trans > t_stop`.
+    # The transmittance, not the opacity, across the loop (over_trans). The stop test
+    # stays `acc_a < ert` on `acc_a = 1 - trans`, the float this returns and the driver
+    # tests against ert: one criterion in both places, whatever the rounding of 1 - ert.
+    # The subtraction is off the compositing chain (it feeds a predicted branch).
     trans = 1.0 - acc_a
-    t_stop = 1.0 - ert
     k = k_begin
-    while k <= k_end and trans > t_stop:
+    while k <= k_end and 1.0 - trans < ert:
         sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
         stop = min(k + PACKET, k_end + 1)
         # With shading, the lanes in groups of SHADE_LANES: a group is shaded as the ray
@@ -166,7 +167,7 @@ def _march_packets(
         # `stop`) is visible; a lane left out is empty or never read, so its stale flag
         # in the buffer is never looked at below. Unshaded, the packet is one group.
         lane = 0
-        while k < stop and trans > t_stop:
+        while k < stop and 1.0 - trans < ert:
             group_end = min(k + SHADE_LANES, stop) if shade_lanes else stop
             if shade_lanes:
                 for probe in range(lane, lane + group_end - k):
@@ -174,7 +175,7 @@ def _march_packets(
                         shade_packet(flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, wdx, wdy, wdz,
                                      inv_spacing, shading, buf[lane:])
                         break
-            while k < group_end and trans > t_stop:
+            while k < group_end and 1.0 - trans < ert:
                 # Unsigned indices: a signed one costs a test and a select per read for
                 # Python's negative indexing (a third of this loop's instructions).
                 u = np.uint64(lane)
@@ -211,9 +212,8 @@ def _march_one_by_one(
     n_nonempty = 0
     shade = shading[SHADING_ENABLED] != 0.0
     trans = 1.0 - acc_a  # see _march_packets
-    t_stop = 1.0 - ert
     k = k_begin
-    while k <= k_end and trans > t_stop:
+    while k <= k_end and 1.0 - trans < ert:
         t = k * dt
         x = ox + t * dx
         y = oy + t * dy
