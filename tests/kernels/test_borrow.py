@@ -90,10 +90,12 @@ def _counting_calls(dispatcher, sig, options=None) -> list[str]:
     """Reference counting in ``dispatcher``'s own machine code for ``sig``: calls of the
     runtime's ``NRT_incref`` / ``NRT_decref``, or their atomics where LLVM inlined
     them. A dispatcher without the disk cache is read as it was compiled in this
-    process; a cached one is compiled again uncached with the same options, updated
-    by ``options`` (a copy loaded from the disk cache keeps no assembly)."""
-    if options is None and isinstance(dispatcher._cache, NullCache):
-        fresh = dispatcher  # compiled here, its assembly kept: no second driver compile
+    process (so is a cached one whose ``sig`` was compiled here, on a cold cache); one
+    loaded from the disk cache is compiled again uncached with the same options,
+    updated by ``options`` (a copy loaded from the disk cache keeps no assembly)."""
+    compiled_here = not dispatcher.overloads[sig].library._disable_inspection
+    if options is None and (isinstance(dispatcher._cache, NullCache) or compiled_here):
+        fresh = dispatcher  # its assembly kept: no second compile of a large kernel
     else:
         opts = {k: v for k, v in dispatcher.targetoptions.items() if k not in ("cache", "nopython")} | (options or {})
         fresh = njit(**opts)(dispatcher.py_func)
