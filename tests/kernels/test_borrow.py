@@ -93,7 +93,9 @@ def _counting_calls(dispatcher, sig, options=None) -> list[str]:
     process (so is a cached one whose ``sig`` was compiled here, on a cold cache); one
     loaded from the disk cache is compiled again uncached with the same options,
     updated by ``options`` (a copy loaded from the disk cache keeps no assembly)."""
-    compiled_here = not dispatcher.overloads[sig].library._disable_inspection
+    # Numba marks a library loaded from its disk cache `_disable_inspection`; where the
+    # private flag is missing, recompiling is the safe reading.
+    compiled_here = not getattr(dispatcher.overloads[sig].library, "_disable_inspection", True)
     if options is None and (isinstance(dispatcher._cache, NullCache) or compiled_here):
         fresh = dispatcher  # its assembly kept: no second compile of a large kernel
     else:
