@@ -87,7 +87,7 @@ class BrickedVoxels(NamedTuple):
     shift: int
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cell(x, n):
     """Lower voxel, step to the upper one and fraction: :func:`..sample._axis`'s cell."""
     i0 = min(max(int(x), 0), max(n - 2, 0))
@@ -201,7 +201,7 @@ def bricked_corners(vox, x, y, z):
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _clamp(x, n):
     return min(max(x, 0.0), n - 1.0)
 

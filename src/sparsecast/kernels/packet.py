@@ -109,17 +109,26 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
         or ``table`` (the kernel is compiled ``noalias``).
     """
     # Two copies of the lane loop, the test between them: a branch on nx inside the
-    # loop kept LLVM from vectorising it as well (1.2-1.5x slower).
+    # loop kept LLVM from vectorising it as well (1.2-1.5x slower). The copy for volumes
+    # thinner than a pair along x is a call (_thin_sample_packet): inlined, it doubled
+    # the code LLVM optimised in every marcher that inlines this one, for a rare case.
     if nx >= pairs_min_nx(flat):
         for lane in range(PACKET):
             t = (k + lane) * dt
             v = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
             _classify(table, v, v_lo, scale, lane, buf)
     else:
-        for lane in range(PACKET):
-            t = (k + lane) * dt
-            v = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
-            _classify(table, v, v_lo, scale, lane, buf)
+        _thin_sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
+def _thin_sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf):
+    """:func:`sample_packet` for ``nx < pairs_min_nx(flat)``: each lane reads its voxels
+    one by one (:func:`.sampler.sample`)."""
+    for lane in range(PACKET):
+        t = (k + lane) * dt
+        v = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
+        _classify(table, v, v_lo, scale, lane, buf)
 
 
 @njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)

@@ -44,7 +44,7 @@ def slab(o, inv, flat, lo, hi, t0, t1):
     return slab_ordered(o, inv, flat, lo, hi, t0, t1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def inverse(d):
     """``(1 / d, d == 0)``: the per-axis values :func:`slab` takes."""
     if d == 0.0:

@@ -9,7 +9,7 @@ from .borrow import NO_REFCOUNT
 from .vectorize import load_run, load_window, run_loadable
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _axis(x, n):
     """Cell of coordinate ``x`` on an axis of ``n`` voxels: (lower voxel, upper voxel, fraction).
 
@@ -23,7 +23,7 @@ def _axis(x, n):
     return i0, i0 + min(n - 1, 1), x - i0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def clamp_point(x, y, z, nx, ny, nz):
     """Clamp an index-space point to the volume box ``[0, n-1]^3``."""
     return (
@@ -52,7 +52,7 @@ def trilinear(flat, nx, ny, nz, x, y, z):
     return lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def cell_of(x, y, z, nx, ny, nz):
     """The trilinear cell of ``(x, y, z)`` as :func:`trilinear` picks it.
 
@@ -167,7 +167,7 @@ def _trilinear_item_loads(flat, nx, ny, nz, x, y, z):
     return trilinear(flat, nx, ny, nz, x, y, z)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz):
     """Trilinear interpolation of a cell's corner values (``v_kji``), x then y then z.
 
@@ -183,7 +183,7 @@ def lerp8(v000, v001, v010, v011, v100, v101, v110, v111, fx, fy, fz):
     return c0 + fz * (c1 - c0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bilerp(a, b, c, d, u, v):
     """Bilinear interpolation: ``a``, ``b`` along ``u`` at ``v = 0``, ``c``, ``d`` at ``v = 1``."""
     ab = a + u * (b - a)
@@ -265,7 +265,7 @@ def _pair(flat, a):  # pragma: no cover - replaced by an overload in jitted code
     raise NotImplementedError("only callable from jitted code")
 
 
-@overload(_pair, inline="always")
+@overload(_pair, jit_options=NO_REFCOUNT)
 def _pair_by_type(flat, a):
     return _pair_of_four if _byte_words(flat) else _pair_of_two
 
@@ -284,7 +284,7 @@ def _x_line(flat, a):  # pragma: no cover - replaced by an overload in jitted co
     raise NotImplementedError("only callable from jitted code")
 
 
-@overload(_x_line, inline="always")
+@overload(_x_line, jit_options=NO_REFCOUNT)
 def _x_line_by_type(flat, a):
     return _x_line_one_load if run_loadable(flat, 4) else _x_line_two_loads
 

@@ -30,7 +30,7 @@ def tf_alpha(table, v, v_lo, scale):
     return i, f, (1.0 - f) * table[i, 3] + f * table[i + 1, 3]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _table_position(n, v, v_lo, scale):
     """Row ``i`` and weight ``f`` of value ``v`` in a table of ``n`` rows (see :func:`tf_alpha`)."""
     # min / max rather than branches: the same values, and no branches to merge where
