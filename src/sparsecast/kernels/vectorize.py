@@ -71,6 +71,15 @@ class LaneLoopCompiler(Compiler):
     registers). Same operations per lane, so the same floats. Measured (naive
     marcher, unshaded, 512², Intel Xeon Emerald Rapids, 2 threads, 2026-12-06):
     frames 15-25 % less CPU.
+
+    On CPUs that LLVM does not tune as having fast gathers (AMD Zen 3 and older, AVX2)
+    the lane loops of :mod:`.packet` stay mostly scalar (fully unrolled, each lane's
+    reads scalar loads): LLVM prices a gather there as the scalar loads it replaces.
+    Forcing gathers (the x86 tuning flag ``fast-gather`` in the lane loops'
+    ``target-features``) was measured on such a CPU (AMD EPYC Zen 3, one thread, 512²,
+    alternating processes, 2026-12-07) and made frames slower: naive dense-TF 0.70-0.96x,
+    deep k-d tree sparse 0.69-1.10x (0.81-0.84x by minima), images identical. So
+    LLVM's choice stands.
     """
 
     def define_pipelines(self):
