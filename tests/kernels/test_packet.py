@@ -151,6 +151,14 @@ def _packed_double_ops(dispatcher, sig) -> int:
     return len(re.findall(r"\bv?(?:mul|add|sub)pd\b", body))
 
 
+def _function_ir(dispatcher, sig) -> str:
+    """The optimised LLVM IR of the body of ``dispatcher``'s compiled ``sig`` (its own function only)."""
+    name = dispatcher.overloads[sig].fndesc.llvm_func_name
+    ir = dispatcher.inspect_llvm(sig)
+    start = ir.index(f"@{name}(")
+    return ir[start:ir.index("\n}\n", start)]
+
+
 @pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"),
                     reason="counts x86 packed-double instructions in the assembly")
 def test_lane_loop_is_vectorised():
@@ -186,10 +194,7 @@ def test_marcher_inlines_the_vectorised_lane_loop():
     # the small ones (_axis, lerp8, _table_position, ...) are plain @njit functions that
     # LLVM must inline. What is left is the gradient near a face, the packet's shading and
     # the packet's copy for thin volumes.
-    name = fresh.overloads[sig].fndesc.llvm_func_name
-    ir = fresh.inspect_llvm(sig)
-    start = ir.index(f"@{name}(")
-    body = ir[start:ir.index("\n}\n", start)]
+    body = _function_ir(fresh, sig)
     called = {re.sub(r"B\d+v\d+.*", "", m) for m in re.findall(r"call [^@\n]*@\"?(_ZN10sparsecast[\w.$]+)", body)}
     assert called == {"_ZN10sparsecast7kernels6sample8gradient", "_ZN10sparsecast7kernels6packet12shade_packet",
                       "_ZN10sparsecast7kernels6packet19_thin_sample_packet"}, called
@@ -257,10 +262,7 @@ def test_lanes_read_byte_voxels_as_32_bit_words(kernel):
     opts = {k: v for k, v in kernel.targetoptions.items() if k not in ("cache", "nopython")}
     fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(kernel.py_func)
     fresh.compile(sig)
-    name = fresh.overloads[sig].fndesc.llvm_func_name
-    ir = fresh.inspect_llvm(sig)
-    start = ir.index(f"@{name}(")
-    body = ir[start:ir.index("\n}\n", start)]
+    body = _function_ir(fresh, sig)
     assert not re.search(r"load i16|i16> @llvm\.masked\.gather", body)
     assert re.search(r"load i32|i32> @llvm\.masked\.gather", body)
 
