@@ -17,7 +17,13 @@ from synthetic import label_volume, sparse_volume
 
 from sparsecast.index.registry import _INDICES
 
-EXACT = [n for n in sc.available_indices() if _INDICES[n].exact]
+# Last index first. pytest-xdist starts its two workers on the two files with the
+# most tests, this one and tests/index/test_exactness.py, which compiles the indices
+# in registry order: walking them the other way (and starting with the label test
+# below, which that file reaches late) the workers compile different kernels, and
+# each finds the other's in the disk cache, instead of compiling the same ones side
+# by side (two minutes of a cold run).
+EXACT = [n for n in reversed(sc.available_indices()) if _INDICES[n].exact]
 ATOL = 1e-5
 
 
@@ -35,6 +41,19 @@ def _axis_camera(vol, dt):
     eye = np.array([-10.0, c[1] + 0.37, c[2] - 0.21])
     return sc.Camera.look_at(eye, eye + [1.0, 0.0, 0.0], up=(0, 0, 1), projection="orthographic",
                              ortho_height=vol.diagonal * 0.8)
+
+
+@pytest.mark.parametrize("name", ["kdtree-deep", "grid-pc", "lbvh"])
+@pytest.mark.parametrize("smooth", [False, True])
+def test_clip_caps_on_labels_equal_naive(name, smooth):
+    vol = label_volume(np.random.default_rng(8), (26, 30, 22), 5, brick_aligned=True)
+    tf = sc.TransferFunction.labels({1: (1, 0, 0, 1), 3: (0, 1, 0, 0.5), 5: (0, 0, 1, 0.8)}, smooth=smooth)
+    cam = sc.Camera.orbit(vol, 50, -20)
+    kw = dict(dt=0.5, ert=1.0, clip_cap=True, clip_planes=[((11.0, 13.0, 12.0), (-1.0, 0.2, 0.5))])
+    ref = sc.render(vol, tf, cam, 24, 24, index="naive", **kw)
+    img = sc.render(vol, tf, cam, 24, 24, index=name, **kw)
+    assert np.abs(img.rgba - ref.rgba).max() <= ATOL
+    assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
 
 
 @pytest.mark.parametrize("name", EXACT)
@@ -147,19 +166,6 @@ def test_clip_caps_equal_naive(scene, name, clip, shade):
     assert img.stats["samples"] <= ref.stats["samples"]
     uncapped = sc.render(vol, tf, cam, 26, 22, index=name, **{**kw, "clip_cap": False})
     assert np.abs(img.rgba - uncapped.rgba).max() > 0.01  # the caps show
-
-
-@pytest.mark.parametrize("name", ["kdtree-deep", "grid-pc", "lbvh"])
-@pytest.mark.parametrize("smooth", [False, True])
-def test_clip_caps_on_labels_equal_naive(name, smooth):
-    vol = label_volume(np.random.default_rng(8), (26, 30, 22), 5, brick_aligned=True)
-    tf = sc.TransferFunction.labels({1: (1, 0, 0, 1), 3: (0, 1, 0, 0.5), 5: (0, 0, 1, 0.8)}, smooth=smooth)
-    cam = sc.Camera.orbit(vol, 50, -20)
-    kw = dict(dt=0.5, ert=1.0, clip_cap=True, clip_planes=[((11.0, 13.0, 12.0), (-1.0, 0.2, 0.5))])
-    ref = sc.render(vol, tf, cam, 24, 24, index="naive", **kw)
-    img = sc.render(vol, tf, cam, 24, 24, index=name, **kw)
-    assert np.abs(img.rgba - ref.rgba).max() <= ATOL
-    assert img.stats["samples_nonempty"] == ref.stats["samples_nonempty"]
 
 
 def _solid():
