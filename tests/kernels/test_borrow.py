@@ -74,7 +74,7 @@ def test_march_interval_is_one_copy_for_every_index(monkeypatch):
 
     The driver runs uncached here, so that it is typed in this process (a driver
     loaded from the disk cache never asks for ``march_interval`` by name)."""
-    monkeypatch.setattr(local, "tiles_kernel", lambda record: driver.dvr_tiles_uncached)
+    monkeypatch.setattr(local, "tiles_kernel", lambda record: driver.render_chunk_uncached)
     vol = sparse_volume(np.random.default_rng(3), (20, 20, 20), 4)
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
     cam = sc.Camera.orbit(vol, 30, 20)
@@ -115,7 +115,7 @@ def test_hot_kernels_count_no_references(monkeypatch):
     argument cost 6 % of a k-d tree isosurface frame. The control, one of them compiled
     with the runtime, does count. The driver runs uncached, so that its callees are
     typed in this process (as in the test above)."""
-    monkeypatch.setattr(local, "tiles_kernel", lambda record: driver.dvr_tiles_uncached)
+    monkeypatch.setattr(local, "tiles_kernel", lambda record: driver.render_chunk_uncached)
     vol = sparse_volume(np.random.default_rng(5), (16, 16, 16), 3)
     tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.1)
     cam = sc.Camera.orbit(vol, 30, 20)
@@ -132,7 +132,7 @@ def test_hot_kernels_count_no_references(monkeypatch):
     for data in (np.ascontiguousarray(vol.data).reshape(-1), bricked.voxels()):
         iso._refine_cubic(data, nx, ny, nz, *bracket)
     assert len(iso._refine_cubic.signatures) >= 2, "no bricked specialisation of the iso refine"
-    for disp in (driver._dvr_tile_uncached, iso.iso_interval, iso._refine_cubic, march_interval):
+    for disp in (driver.dvr_tiles_uncached, iso.iso_interval, iso._refine_cubic, march_interval):
         assert disp.signatures, disp.py_func.__name__
         for sig in disp.signatures:
             assert _counting_calls(disp, sig) == [], (disp.py_func.__name__, sig)

@@ -44,7 +44,8 @@ from ..kernels.layout import voxel_view
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
 
-__all__ = ["dvr_tile", "dvr_tiles", "dvr_tiles_uncached", "tiles_kernel"]
+__all__ = ["dvr_tile", "dvr_tiles", "dvr_tiles_uncached", "new_scratch", "render_chunk", "render_chunk_uncached",
+           "tiles_kernel"]
 
 
 @njit(cache=True, inline="always")
@@ -55,7 +56,11 @@ def _initial(init, has_init, py, px):
     return 0.0, 0.0, 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+# Inlined into dvr_tiles (Numba IR), not a function of its own: a callee compiled
+# apart is linked into its caller's module, and LLVM optimises and emits the linked
+# module again in the caller, so each specialisation paid for the tile loop's code
+# twice (about 1 s of a driver specialisation's compile).
+@njit(inline="always")
 def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
     """Render the pixels of one 8x8 tile of the output rectangle.
 
@@ -210,40 +215,51 @@ def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, ou
             out_nonempty[py, px] = n_nonempty
 
 
-@njit(cache=True, nogil=True)
-def dvr_tiles(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty):
+@njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
+def dvr_tiles(first, last, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
     """Render tiles ``first..last-1`` (see :func:`dvr_tile`), without the GIL.
 
     The frame is spread over threads by :func:`sparsecast.render.schedule.run_tiles`
     rather than ``prange``: Numba's parallel loops cannot take records (tuples of
     arrays) as arguments, and chunks handed out by a pool balance the load of
-    sparse frames and let a caller stop between chunks. The record's scratch is
-    allocated here, once per chunk, so that :func:`dvr_tile` allocates nothing and
-    runs without reference counting.
+    sparse frames and let a caller stop between chunks. ``scratch`` is the
+    record's (:func:`new_scratch`), one per chunk: the loop allocates nothing and
+    runs without reference counting (:data:`sparsecast.kernels.borrow.NO_REFCOUNT`).
     """
-    scratch = make_scratch(record)
     for tile in range(first, last):
         dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty)
+
+
+@njit(cache=True)
+def new_scratch(record):
+    """The record's traversal scratch (:func:`sparsecast.index.interval.make_scratch`)."""
+    return make_scratch(record)
 
 
 # The same driver without the on-disk cache, for records defined outside this
 # package (a user's or a test's own index). Numba's cache index for a function
 # pickles every signature it holds, so one record class that a later process
-# cannot import would make every later cache load of ``dvr_tile`` fail.
-_dvr_tile_uncached = njit(error_model="numpy", **NO_REFCOUNT)(dvr_tile.py_func)
+# cannot import would make every later cache load of ``dvr_tiles`` fail.
+dvr_tiles_uncached = njit(nogil=True, error_model="numpy", **NO_REFCOUNT)(dvr_tiles.py_func)
+_new_scratch_uncached = njit(new_scratch.py_func)
 
 
-@njit(nogil=True)
-def dvr_tiles_uncached(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty):
-    """:func:`dvr_tiles` without the on-disk cache (records from outside the package)."""
-    scratch = make_scratch(record)
-    for tile in range(first, last):
-        _dvr_tile_uncached(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty)
+def render_chunk(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty) -> None:
+    """:func:`dvr_tiles` with a fresh scratch: the kernel :func:`tiles_kernel` gives for the
+    package's own records (a pool thread calls it per chunk; the GIL is held only to
+    allocate the scratch)."""
+    dvr_tiles(first, last, record, new_scratch(record), data, frame, init, out_rgba, out_samples, out_nonempty)
+
+
+def render_chunk_uncached(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty) -> None:
+    """:func:`render_chunk` without the on-disk cache (records from outside the package)."""
+    dvr_tiles_uncached(first, last, record, _new_scratch_uncached(record), data, frame, init, out_rgba,
+                       out_samples, out_nonempty)
 
 
 def tiles_kernel(record):
-    """:func:`dvr_tiles` for the package's own records, else :data:`dvr_tiles_uncached`."""
-    return dvr_tiles if _own(record) else dvr_tiles_uncached
+    """:func:`render_chunk` for the package's own records, else :func:`render_chunk_uncached`."""
+    return render_chunk if _own(record) else render_chunk_uncached
 
 
 def _own(value) -> bool:
@@ -251,4 +267,3 @@ def _own(value) -> bool:
     if isinstance(value, tuple) and hasattr(value, "_fields"):
         return type(value).__module__.startswith("sparsecast.") and all(_own(v) for v in value)
     return True
-
