@@ -20,8 +20,9 @@ the frame went from 83.6 to 67.4 ms (naive 290 ms, unchanged).
 Such a kernel may not allocate (Numba refuses to compile one that does), and it
 takes no reference of its own, so what it reads must be kept alive by its caller,
 as every argument is. The DVR driver is such a kernel now (its scratch comes from
-``render.driver.new_scratch``, called before it); borrowed views remain for loops that allocate as they go, such as
-the surface kernels' per-chunk scratch inside ``prange``.
+``render.driver.new_scratch``, called before it); borrowed views remain for loops
+that allocate as they go, such as the surface kernels' per-chunk scratch inside
+``prange``.
 
 Safety: a borrowed view does not keep its data alive. Borrow only what stays
 alive for as long as the view is used: a function's arguments (the caller holds

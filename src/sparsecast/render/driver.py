@@ -59,7 +59,7 @@ def _initial(init, has_init, py, px):
 # Inlined into dvr_tiles (Numba IR), not a function of its own: a callee compiled
 # apart is linked into its caller's module, and LLVM optimises and emits the linked
 # module again in the caller, so each specialisation paid for the tile loop's code
-# twice (about 1 s of a driver specialisation's compile).
+# twice (about 0.7 s of LLVM a specialisation).
 @njit(inline="always")
 def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
     """Render the pixels of one 8x8 tile of the output rectangle.
