@@ -29,7 +29,7 @@ from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
 from ._rbvh_wide_build_kernels import WIDTH
 from ._rbvh_kernels import tile_hit
 from ..kernels.simd import slab4
-from ._wide_kernels import D_FLUSH, _cull, _f32, _inv, slab_origins, slab_setup32_flat
+from ._wide_kernels import D_FLUSH, _cull, _f32, _inv, misses_root, slab_origins, slab_setup32_flat
 
 # slab4 tests exactly four boxes a node (<4 x float>)
 if WIDTH != 4:  # pragma: no cover - a guard for whoever changes WIDTH
@@ -62,15 +62,18 @@ def _leaf_entry(box, node, c, rows, org, inv, t_min):
 
 @njit(cache=True, inline="always")
 def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
-                          atlas_depth, atlas_normal, ox, oy, oz, dx, dy, dz, t_min, t_max,
+                          atlas_depth, atlas_normal, root, ox, oy, oz, dx, dy, dz, t_min, t_max,
                           st_node, st_t, lane_b, fp0, spread, n_levels):
     """Nearest hit in ``[t_min, t_max]``; scratch ``st_node`` (s,) int32, ``st_t`` (s,) float64 and
     ``lane_b`` (WIDTH,) float32.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.rbvh_wide.WideRBVH.nodes`). Returns ``(t, nx, ny, nz, face, tile, a, b)``
-    as :func:`._bvh_kernels.closest_hit`.
+    as :func:`._bvh_kernels.closest_hit`. ``root`` is :func:`._wide_kernels.root_slab` of the
+    tree's root box: a ray that misses it returns before any set-up.
     """
+    if misses_root(root, ox, oy, oz, dx, dy, dz, t_min, t_max):
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
     # The box test is the exact wide BVH's conservative float32 one (see
     # ._wide_kernels): tiny direction components flushed to zero for it alone (the
@@ -148,8 +151,8 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, ti
 
 @njit(cache=True, parallel=True)
 def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
-                        atlas_depth, atlas_normal, origins, dirs, t_min, t_max, n_stack, fp0, spread, n_levels,
-                        out_t, out_n, out_face, out_tile, out_uv):
+                        atlas_depth, atlas_normal, root, origins, dirs, t_min, t_max, n_stack, fp0, spread,
+                        n_levels, out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`.
 
     ``fp0 + spread * t`` is the rays' footprint for mip selection (0, 0: finest).
@@ -164,7 +167,7 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tile
         st_node, st_t, lane_b = borrowed(scratch)
         for r in range(ck * RAY_CHUNK, min(n, (ck + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                bx, ch, tr, tf, fa, vn, rec, reci, ad, an, origins[r, 0], origins[r, 1], origins[r, 2],
+                bx, ch, tr, tf, fa, vn, rec, reci, ad, an, root, origins[r, 0], origins[r, 1], origins[r, 2],
                 dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, fp0, spread, n_levels)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
@@ -175,7 +178,7 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tile
 
 @njit(cache=True, parallel=True)
 def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
-                           atlas_depth, atlas_normal, params, width, height, n_stack, n_levels,
+                           atlas_depth, atlas_normal, root, params, width, height, n_stack, n_levels,
                            out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
     :func:`._bvh_kernels.cast_primary`)."""
@@ -193,7 +196,7 @@ def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, t
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                    bx, ch, tr, tf, fa, vn, rec, reci, ad, an, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
+                    bx, ch, tr, tf, fa, vn, rec, reci, ad, an, root, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
                     st_node, st_t, lane_b, fp0, spread, n_levels)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz

@@ -24,6 +24,14 @@ inverses are widened by :data:`ROBUST32` (16 unit roundoffs, over the 7 that the
 roundings cost), and the bound against the best hit is rounded up: rounding never drops a
 box the ray touches. A ray with a zero direction component that runs in a box's
 face plane counts as inside the slab (:func:`slab_origins`, :func:`slab_origins32`).
+
+**Root pre-test** (:func:`misses_root`): before any of that set-up (six divisions,
+twelve directed roundings, the shear) a ray meets the root box, widened, in
+float64; one that misses it meets nothing and returns at once. Rays that miss the
+scene are most of a frame's pixels wherever the mesh does not fill the view:
+such a ray cost 84 ns of CPU with the set-up and the root node's test, 16 ns with
+the pre-test (the cast loop alone: 9.5 ns; 262 k rays leaving the bunny's box, 2
+threads, AMD EPYC Zen 3).
 """
 
 from __future__ import annotations
@@ -46,6 +54,48 @@ RAY_CHUNK = 64
 ROBUST32 = 1.0 + 2.0 ** -20
 #: direction components below this (of a unit vector) count as zero
 D_FLUSH = 2.0 ** -60
+
+
+#: widening of the root box for :func:`misses_root`, relative to the scene's size and
+#: coordinates (far above float64 rounding; float32 boxes hold their triangles already)
+ROOT_PAD = 1e-6
+#: per ray, the root box is widened by this much of the origin's largest coordinate too:
+#: ``(plane - o) * inv`` rounds by about 1e-16 of ``|o|``
+ORIGIN_PAD = 1e-13
+
+
+def root_slab(root: np.ndarray) -> np.ndarray:
+    """The root box ``(2, 3)`` (min, max corners) widened for :func:`misses_root`:
+    (6,) float64 ``x0, y0, z0, x1, y1, z1``; an empty box (no primitive) stays empty."""
+    lo, hi = np.asarray(root, np.float64)
+    if not np.all(lo <= hi):
+        return np.array([np.inf] * 3 + [-np.inf] * 3)
+    pad = ROOT_PAD * float(np.max(hi - lo) + np.max(np.maximum(np.abs(lo), np.abs(hi)))) + 1e-300
+    return np.concatenate([lo - pad, hi + pad])
+
+
+@njit(cache=True, inline="always")
+def _root_axis(o, d, lo, hi, tn, tf):
+    """:func:`misses_root` along one axis: ``[tn, tf]`` cut to the slab ``[lo, hi]``."""
+    if d == 0.0:
+        if o < lo or o > hi:
+            return math.inf, -math.inf
+        return tn, tf
+    a = (lo - o) / d
+    b = (hi - o) / d
+    return max(tn, min(a, b)), min(tf, max(a, b))
+
+
+@njit(cache=True, inline="always")
+def misses_root(root, ox, oy, oz, dx, dy, dz, t_min, t_max):
+    """Whether the ray misses the root box :func:`root_slab` within ``[t_min, t_max]``:
+    then it meets no primitive. Direction components under :data:`D_FLUSH` count as
+    zero, as in the box tests of the traversal."""
+    pad = ORIGIN_PAD * max(abs(ox), abs(oy), abs(oz))
+    tn, tf = _root_axis(ox, 0.0 if abs(dx) < D_FLUSH else dx, root[0] - pad, root[3] + pad, t_min, t_max)
+    tn, tf = _root_axis(oy, 0.0 if abs(dy) < D_FLUSH else dy, root[1] - pad, root[4] + pad, tn, tf)
+    tn, tf = _root_axis(oz, 0.0 if abs(dz) < D_FLUSH else dz, root[2] - pad, root[5] + pad, tn, tf)
+    return not tn <= tf
 
 
 def stack_size(depth: int) -> int:
@@ -172,19 +222,21 @@ def vertex_normal(faces, vnormals, face, a, b):
 
 
 @njit(cache=True, inline="always")
-def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, dy, dz, t_min, t_max,
+def closest_hit_wide(box, child, tri4, face4, faces, vnormals, root, ox, oy, oz, dx, dy, dz, t_min, t_max,
                      st_node, st_t, lane_b, lane_t):
     """Nearest triangle hit in ``[t_min, t_max]``.
 
     ``box`` and ``child`` are the nodes (n, 32) as float32 and as int32
     (:attr:`.wide.WideBVH.nodes`): boxes at ``4 row + c``, children at ``24 + c``.
-    Scratch: ``st_node`` (s,) int32, ``st_t`` (s,) float32, ``lane_b`` (4,) float32,
-    ``lane_t`` (8,) float64.
+    ``root`` is :func:`root_slab` of the tree's root box. Scratch: ``st_node`` (s,)
+    int32, ``st_t`` (s,) float32, ``lane_b`` (4,) float32, ``lane_t`` (8,) float64.
 
     Returns ``(t, nx, ny, nz, face, -1, a, b)`` as :func:`._bvh_kernels.closest_hit`
     (``t = inf`` on a miss; unit shading normal; barycentrics ``a, b`` of
     vertices 1 and 2).
     """
+    if misses_root(root, ox, oy, oz, dx, dy, dz, t_min, t_max):
+        return math.inf, 0.0, 0.0, 0.0, -1, -1, 0.0, 0.0
     # A component below 2^-60 of a unit vector is under the rounding of the others:
     # zero makes the ray exactly axis-parallel for both tests and keeps 1/d finite in float32.
     if abs(dx) < D_FLUSH:
@@ -286,7 +338,7 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, ox, oy, oz, dx, d
 
 
 @njit(cache=True, parallel=True)
-def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_min, t_max, n_stack,
+def cast_rays_wide(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, n_stack,
                    out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`."""
     n = origins.shape[0]
@@ -300,7 +352,7 @@ def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_mi
         st_node, st_t, lane_b, lane_t = borrowed(scratch)
         for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
             t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                bx, ch, t4, f4, fa, vn, origins[r, 0], origins[r, 1], origins[r, 2],
+                bx, ch, t4, f4, fa, vn, root, origins[r, 0], origins[r, 1], origins[r, 2],
                 dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, lane_t)
             out_t[r] = t
             out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
@@ -310,7 +362,7 @@ def cast_rays_wide(box, child, tri4, face4, faces, vnormals, origins, dirs, t_mi
 
 
 @njit(cache=True, parallel=True)
-def cast_primary_wide(box, child, tri4, face4, faces, vnormals, params, width, height, n_stack,
+def cast_primary_wide(box, child, tri4, face4, faces, vnormals, root, params, width, height, n_stack,
                       out_t, out_n, out_face, out_tile, out_uv):
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
     :func:`._bvh_kernels.cast_primary`)."""
@@ -324,7 +376,7 @@ def cast_primary_wide(box, child, tri4, face4, faces, vnormals, params, width, h
             for px in range(x0, x1):
                 ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
                 t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                    bx, ch, t4, f4, fa, vn, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, lane_t)
+                    bx, ch, t4, f4, fa, vn, root, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, lane_t)
                 out_t[py, px] = t
                 out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
                 out_face[py, px], out_tile[py, px] = f, tl

@@ -19,7 +19,7 @@ from ..errors import ParameterError
 from ._bvh_kernels import TILE_LEAF, cast_primary, cast_rays
 from ._rbvh_kernels import TILE_H, TILE_OFFSET, TILE_RES, TILE_WORDS
 from ._rbvh_wide_kernels import cast_primary_rbvh_wide, cast_rays_rbvh_wide
-from ._wide_kernels import cast_primary_wide, cast_rays_wide
+from ._wide_kernels import cast_primary_wide, cast_rays_wide, root_slab
 from .rbvh_wide import WideRBVH
 from .wide import WideBVH
 
@@ -154,7 +154,7 @@ class SurfaceIndex:
     def _rbvh_wide_args(self) -> tuple:
         w = self.wide_rbvh
         return (w.nodes, w.nodes.view(np.int32), self.tris, self.tri_face, self.faces, self.vnormals,
-                self.tiles, self.tiles.view(np.int32), self.atlas_depth, self.atlas_normal)
+                self.tiles, self.tiles.view(np.int32), self.atlas_depth, self.atlas_normal, root_slab(w.root))
 
     def ray_call(self, origins: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float,
                  footprint: tuple[float, float], out: tuple) -> tuple[Any, tuple]:
@@ -162,7 +162,7 @@ class SurfaceIndex:
         (unit directions) into ``out = (t (n,), normals (n, 3), face (n,), tile (n,), uv (n, 2))``."""
         if self.wide is not None:
             w = self.wide
-            return cast_rays_wide, (*w.kernel_args(), self.faces, self.vnormals,
+            return cast_rays_wide, (*w.kernel_args(), self.faces, self.vnormals, root_slab(w.root),
                                     origins, dirs, t_min, t_max, w.stack_size, *out)
         if self.wide_rbvh is not None:
             return cast_rays_rbvh_wide, (*self._rbvh_wide_args(), origins, dirs, t_min, t_max,
@@ -176,7 +176,7 @@ class SurfaceIndex:
         (:meth:`sparsecast.Camera.ray_params`) into per-pixel ``out`` (as :meth:`ray_call`'s, (H, W, ...))."""
         if self.wide is not None:
             w = self.wide
-            return cast_primary_wide, (*w.kernel_args(), self.faces, self.vnormals,
+            return cast_primary_wide, (*w.kernel_args(), self.faces, self.vnormals, root_slab(w.root),
                                        params, width, height, w.stack_size, *out)
         if self.wide_rbvh is not None:
             return cast_primary_rbvh_wide, (*self._rbvh_wide_args(), params, width, height,
