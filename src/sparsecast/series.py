@@ -66,7 +66,7 @@ class VolumeSeries(Sequence):
         that slices lazily): step ``t`` is ``Volume(data[t], nonfinite=nonfinite)``."""
         shape = getattr(data, "shape", None)
         if shape is None or len(shape) != 4 or min(shape) == 0:
-            raise VolumeDataError(f"{name}: expected a 4-D array (t, nz, ny, nx) with no empty axis, "
+            raise VolumeDataError(f"{name!r}: expected a 4-D array (t, nz, ny, nx) with no empty axis, "
                                   f"got shape {shape}")
         one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
         loaders = [lambda t=t: Volume(np.asarray(data[t]), spacing, origin, name=f"{name}[t={t}]",

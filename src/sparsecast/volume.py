@@ -182,10 +182,10 @@ class Volume:
         arr = np.asarray(data)
         if arr.ndim != 3:
             raise VolumeDataError(
-                f"{name}: expected a 3-D array of shape (nz, ny, nx), got {arr.ndim}-D shape {arr.shape}"
+                f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got {arr.ndim}-D shape {arr.shape}"
             )
         if min(arr.shape) == 0:
-            raise VolumeDataError(f"{name}: volume has a zero-size axis, shape {arr.shape}")
+            raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {arr.shape}")
         arr = _coerce_dtype(arr, name)
         value_range = None
         if arr.dtype.kind == "f":
@@ -502,7 +502,7 @@ def _coerce_dtype(arr: np.ndarray, name: str) -> np.ndarray:
 
 
 def _reject(arr: np.ndarray, name: str, supported: str) -> np.ndarray:
-    raise VolumeDataError(f"{name}: unsupported dtype {arr.dtype}; expected one of {supported}")
+    raise VolumeDataError(f"{name!r}: unsupported dtype {arr.dtype}; expected one of {supported}")
 
 
 def _check_finite(arr: np.ndarray, name: str, policy: str) -> tuple[np.ndarray, tuple[float, float] | None]:
@@ -516,12 +516,12 @@ def _check_finite(arr: np.ndarray, name: str, policy: str) -> tuple[np.ndarray, 
     n_bad = int(arr.size - np.count_nonzero(finite))
     if policy == "raise":
         raise VolumeDataError(
-            f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
+            f"{name!r}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
             f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
             f"min/max)"
         )
     if not finite.any():
-        raise VolumeDataError(f"{name}: every voxel is NaN or Inf; nothing to replace them with")
+        raise VolumeDataError(f"{name!r}: every voxel is NaN or Inf; nothing to replace them with")
     lo = arr[finite].min()
     hi = arr[finite].max()
     return np.nan_to_num(arr, nan=lo, posinf=hi, neginf=lo), None

@@ -66,6 +66,9 @@ def test_nonfinite_voxels_from_the_command_line(monkeypatch, capsys, tmp_path):
     code, _, err = run_cli(monkeypatch, capsys, "render", str(tmp_path / "bad.npy"), "-o", str(tmp_path / "a.png"),
                            "--size", "16x16")
     assert code == 2 and "3 voxel(s) are NaN or Inf" in err and "--nonfinite replace" in err
+    # The file named as every loader error names it: quoted, so that a name with spaces
+    # or colons reads unambiguously.
+    assert f"{str(tmp_path / 'bad.npy')!r}: 3 voxel(s)" in err
     assert not (tmp_path / "a.png").exists() and "Traceback" not in err
     code, _, err = run_cli(monkeypatch, capsys, "render", str(tmp_path / "bad.npy"), "--nonfinite", "maybe")
     assert code == 2 and "--nonfinite" in err and "'maybe'" in err and "'raise' or 'replace'" in err

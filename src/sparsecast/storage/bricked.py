@@ -95,7 +95,7 @@ def _storage_dtype(dtype: np.dtype, name: str) -> np.dtype:
     if dtype.kind in "iu" and dtype.itemsize <= 4:
         return np.dtype("float64")  # exact for every 32-bit integer
     raise VolumeDataError(
-        f"{name}: unsupported dtype {dtype}; expected one of {', '.join(str(d) for d in SUPPORTED_DTYPES)} "
+        f"{name!r}: unsupported dtype {dtype}; expected one of {', '.join(str(d) for d in SUPPORTED_DTYPES)} "
         "(or bool, int8, float16, 32-bit integers, which are converted losslessly)"
     )
 
@@ -161,9 +161,9 @@ class BrickedVolume(Volume):
     ) -> None:
         shape = tuple(int(n) for n in getattr(source, "shape", ()))
         if len(shape) != 3:
-            raise VolumeDataError(f"{name}: expected a 3-D array of shape (nz, ny, nx), got shape {shape}")
+            raise VolumeDataError(f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got shape {shape}")
         if min(shape) == 0:
-            raise VolumeDataError(f"{name}: volume has a zero-size axis, shape {shape}")
+            raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {shape}")
         B = as_int(brick_size, "brick_size", lo=8, hi=64)
         if B & (B - 1):
             raise fail("brick_size", "a power of two from 8 to 64", brick_size)

@@ -120,9 +120,9 @@ def _array_of(volume) -> tuple[Any, str, tuple[int, ...] | None]:
     if not hasattr(array, "shape") or not hasattr(array, "dtype"):
         array = np.asarray(array)
     if len(array.shape) != 3:
-        raise VolumeDataError(f"{name}: expected a 3-D array of shape (nz, ny, nx), got shape {tuple(array.shape)}")
+        raise VolumeDataError(f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got shape {tuple(array.shape)}")
     if min(array.shape) == 0:
-        raise VolumeDataError(f"{name}: volume has a zero-size axis, shape {tuple(array.shape)}")
+        raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {tuple(array.shape)}")
     return array, name, (tuple(int(c) for c in chunks) if chunks is not None else None)
 
 
@@ -258,7 +258,7 @@ def scan(
     shape = tuple(int(n) for n in array.shape)
     dtype = np.dtype(array.dtype)
     if dtype.kind not in "uif":
-        raise VolumeDataError(f"{name}: dtype {dtype} is not a real number type; expected integers or floats")
+        raise VolumeDataError(f"{name!r}: dtype {dtype} is not a real number type; expected integers or floats")
     if isinstance(array, da.Array):
         darr = array
     else:
@@ -324,14 +324,14 @@ def scan(
     n_bad = acc.nan + acc.posinf + acc.neginf
     if n_bad and nonfinite == "raise":
         raise VolumeDataError(
-            f"{name}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
+            f"{name!r}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
             f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
             f"min/max)"
         )
     vmin, vmax = acc.vmin, acc.vmax
     finite = np.isfinite(vmin)
     if not finite.any():
-        raise VolumeDataError(f"{name}: every voxel is NaN or Inf; nothing to replace them with")
+        raise VolumeDataError(f"{name!r}: every voxel is NaN or Inf; nothing to replace them with")
     lo, hi = float(vmin[finite].min()), float(vmax[np.isfinite(vmax)].max())
     if acc.low is not None:
         # The dense path replaces NaN/-Inf by lo and +Inf by hi before its brick pass.
