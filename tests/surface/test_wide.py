@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sparsecast.surface import build_bvh, raycast
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sparsecast.surface import build_rbvh
+import sparsecast.surface.index as surface_index
+from sparsecast.surface import build_bvh, build_rbvh, raycast
 from sparsecast.surface._wide_kernels import D_FLUSH, misses_root, root_slab, slab_origins32
 from sparsecast.surface.bvh import triangle_tree
 from sparsecast.surface.mesh import TriangleMesh, icosphere
@@ -205,8 +205,6 @@ def test_rays_grazing_the_root_box_far_from_the_origin_hit_as_without_the_pretes
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     o = target - rng.choice([0.5, 1e3, 1e6], m)[:, None] * d
     hits = raycast(index, o, d)
-    import sparsecast.surface.index as surface_index
-
     monkeypatch.setattr(surface_index, "root_slab", lambda root: np.array([-np.inf] * 3 + [np.inf] * 3))
     every = raycast(index, o, d)
     np.testing.assert_array_equal(hits.t, every.t)

@@ -74,6 +74,9 @@ def root_slab(root: np.ndarray) -> np.ndarray:
     return np.concatenate([lo - pad, hi + pad])
 
 
+# The float64 slab of kernels.ray.clip_box, inlined: clip_box (and the inverse it
+# calls) are plain calls, and through them a ray beside the mesh cost 43 ns of CPU
+# instead of 16 (bunny, 262 k rays, 2 threads).
 @njit(cache=True, inline="always")
 def _root_axis(o, d, lo, hi, tn, tf):
     """:func:`misses_root` along one axis: ``[tn, tf]`` cut to the slab ``[lo, hi]``."""
