@@ -2,13 +2,13 @@
 
 :func:`sample_packet` takes lattice samples ``k .. k + PACKET - 1`` of a ray with the
 scalar loop's arithmetic (:func:`.sampler.sample`, :func:`.shade.tf_alpha`,
-:func:`.shade.tf_color`), in a loop over the :data:`PACKET` lanes that LLVM vectorises:
-the positions, the cell look-ups, the interpolation and the table blend
-run as vector instructions. Its reads are adjacent pairs, one load each: the
-trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
+:func:`.shade.tf_color`), in loops over the :data:`PACKET` lanes that LLVM vectorises
+(two of them, see below): where it gathers, the positions, the cell look-ups, the
+interpolation and the table blend run as vector instructions. Its reads are adjacent
+pairs, one load each: the trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
 ``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
 scalar load and an insert per lane. The loop is compiled with ``noalias`` arguments
-(:class:`.vectorize.LaneLoopCompiler`); without it the gathers kept it scalar.
+(:class:`.vectorize.LaneLoopCompiler`); without it the gathers kept them scalar.
 The operations per lane are the scalar ones in the same order, and Numba forms
 no fused multiply-adds, so every lane's floats equal the scalar loop's bit for
 bit. Compositing stays scalar (:func:`.march.march_segment`): it is a running
@@ -42,13 +42,27 @@ its loads are gathers, and so are a uint8 volume's trilinear corner pairs
 (:func:`.sample.trilinear_pairs`: 32-bit words and a shift).
 
 On AMD (Zen 3 here) LLVM emits no gathers: its cost model takes them to be slow
-there (no ``fast-gather`` tuning), so the lane loop is compiled as unrolled scalar
-code, and the packets gain by independent lanes, not SIMD. Forcing gathers
+there (no ``fast-gather`` tuning), so a lane loop whose reads it would have to gather
+is compiled as unrolled scalar code, all its arithmetic with it. Forcing gathers
 (``NUMBA_CPU_FEATURES`` = the host's features plus ``+fast-gather``) made frames
 slower, images identical: naive dense TF tooth and bonsai 512² 1.16-1.26x the CPU
 time, shaded 1.18x, the k-d tree's default-TF frames 1.15x (one thread,
 alternating processes, 2 rounds, 2026-12-07). Cycles per sample measured on Intel
 and on AMD machines therefore differ by more than the clock.
+
+So :func:`sample_packet` runs two lane loops, not one: the samples' values (the
+voxel reads), then the table (its reads and blend). On such a CPU the first stays
+scalar, while the second's position, blend and float32 conversions become vector code
+around the table rows' scalar loads (as :func:`shade_packet`'s arithmetic does around
+its reads); where LLVM gathers, each loop is a gather loop as the one was, with one
+store and one load more per lane. Images identical. Measured (AMD EPYC Zen 3, 512²,
+2 threads, alternating processes against one loop, 2026-12-07): naive dense TF, CPU
+per sample unshaded 22.7-26.5 -> 14.1-15.4 ns (tooth, bonsai, mni152), shaded 52-67 ->
+42-46 ns; the deep k-d tree's default-TF frames 1.1-1.4x less CPU (tooth, headsq,
+neghip, mni152). Not measured on an Intel CPU with AVX-512. The value-only packets of
+the isosurfaces (:func:`value_packet`) have no table; split there as well, the
+corners read in one loop and interpolated in a second, they were slower (naive iso
+frames 1.08-1.11x the CPU), so they stay one loop.
 """
 
 from __future__ import annotations
@@ -122,10 +136,13 @@ def sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx,
     # thinner than a pair along x is a call (_thin_sample_packet): inlined, it doubled
     # the code LLVM optimised in every marcher that inlines this one, for a rare case.
     if nx >= pairs_min_nx(flat):
+        # Two lane loops, the samples' values and then the table's (see the module
+        # docstring), each lane's value passing through its opacity slot.
         for lane in range(PACKET):
             t = (k + lane) * dt
-            v = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
-            _classify(table, v, v_lo, scale, lane, buf)
+            buf[lane] = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
+        for lane in range(PACKET):
+            _classify(table, buf[lane], v_lo, scale, lane, buf)
     else:
         _thin_sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
 
