@@ -166,7 +166,7 @@ def test_lane_loop_is_vectorised():
     arguments are noalias; the control, the same loop through Numba's default
     pipeline, stays scalar (LLVM cannot bound the gathers' addresses)."""
     sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64, types.float32[:, ::1],
-           types.float64, types.float64, *([types.float64] * 7), types.int64, types.float64[::1])
+           types.float64, types.float64, *([types.float64] * 7), types.int64, types.int64, types.float64[::1])
     opts = {k: v for k, v in sample_packet.targetoptions.items() if k not in ("cache", "nopython")}
     # compiled again uncached (a copy loaded from the disk cache keeps no assembly)
     fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(sample_packet.py_func)
@@ -208,7 +208,7 @@ def _avx512() -> bool:
 
 def _fresh_sample_packet():
     sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64, types.float32[:, ::1],
-           types.float64, types.float64, *([types.float64] * 7), types.int64, types.float64[::1])
+           types.float64, types.float64, *([types.float64] * 7), types.int64, types.int64, types.float64[::1])
     opts = {k: v for k, v in sample_packet.targetoptions.items() if k not in ("cache", "nopython")}
     fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(sample_packet.py_func)
     fresh.compile(sig)
@@ -245,7 +245,7 @@ _BYTE_SIGS = {
                      types.float64[::1]),
     "sample_packet": (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
                       types.float32[:, ::1], types.float64, types.float64, *([types.float64] * 7), types.int64,
-                      types.float64[::1]),
+                      types.int64, types.float64[::1]),
     "value_packet": (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
                      *([types.float64] * 7), types.int64, types.float64[::1]),
 }
@@ -283,10 +283,31 @@ def test_sample_packet_lanes():
         r, g, b = tf_color(table, i, f)
         return a, r, g, b
 
-    sample_packet(Trilinear(), data.reshape(-1), 8, 7, 6, table, 0.0, 1.0, *ray, dt, k, buf)
+    sample_packet(Trilinear(), data.reshape(-1), 8, 7, 6, table, 0.0, 1.0, *ray, dt, k, k + PACKET - 1, buf)
     for lane in range(PACKET):
         expect = one(data.reshape(-1), (k + lane) * dt)
         assert tuple(buf[lane:4 * PACKET:PACKET]) == expect
+
+
+@pytest.mark.parametrize("nx", [8, 2], ids=["pairs", "thin"])
+def test_sample_packet_stops_at_k_last(nx):
+    """Lanes past ``k_last`` (a segment's end) are not computed: they keep what the buffer
+    held; the lanes up to it are the samples (both lane loops: pairs and thin volumes)."""
+    rng = np.random.default_rng(4)
+    data = (rng.random((6, 7, nx)) * 255).astype(np.uint8)
+    table = rng.random((256, 4)).astype(np.float32)
+    ray = (0.3, 0.5, 0.2, 0.6 if nx > 2 else 0.05, 0.5, 0.62)
+    dt, k = 0.25, 3
+    flat = data.reshape(-1)
+    full = np.full(PACKET_BUFFER, np.nan)
+    sample_packet(Trilinear(), flat, nx, 7, 6, table, 0.0, 1.0, *ray, dt, k, k + PACKET - 1, full)
+    for last in (k, k + 2, k + PACKET - 2):
+        buf = np.full(PACKET_BUFFER, -7.0)
+        sample_packet(Trilinear(), flat, nx, 7, 6, table, 0.0, 1.0, *ray, dt, k, last, buf)
+        n = last - k + 1
+        for row in range(4):
+            assert np.array_equal(buf[row * PACKET:row * PACKET + n], full[row * PACKET:row * PACKET + n])
+            assert np.all(buf[row * PACKET + n:(row + 1) * PACKET] == -7.0)
 
 
 @pytest.mark.parametrize("shape", [(6, 7, 8), (5, 4, 1)])

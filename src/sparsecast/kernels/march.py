@@ -153,6 +153,10 @@ def _march_packets(
     # Shading in packets clamps every lane's reads into the interior (4 voxels a side).
     shade_lanes = shade and nx >= 4 and ny >= 4 and nz >= 4
     buf = lane_buffer(PACKET_BUFFER)
+    # A packet fills only the lanes up to k_end; shade_packet still reads its group's
+    # colours beyond them (and drops them): zeros there, not the stack's old bits.
+    for i in range(4 * PACKET):
+        buf[i] = 0.0
     # The transmittance, not the opacity, across the loop (over_trans). The stop test
     # stays `acc_a < ert` on `acc_a = 1 - trans`, the float this returns and the driver
     # tests against ert: one criterion in both places, whatever the rounding of 1 - ert.
@@ -160,7 +164,7 @@ def _march_packets(
     trans = 1.0 - acc_a
     k = k_begin
     while k <= k_end and 1.0 - trans < ert:
-        sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, buf)
+        sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz, dt, k, k_end, buf)
         stop = min(k + PACKET, k_end + 1)
         # With shading, the lanes in groups of SHADE_LANES: a group is shaded as the ray
         # reaches it (none past termination) if a lane of it that is composited (before
