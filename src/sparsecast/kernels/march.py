@@ -155,8 +155,10 @@ def _march_packets(
     buf = lane_buffer(PACKET_BUFFER)
     # A packet fills only the lanes up to k_end; shade_packet still reads its group's
     # colours beyond them (and drops them): zeros there, not the stack's old bits.
-    for i in range(4 * PACKET):
-        buf[i] = 0.0
+    # Unshaded, no lane past k_end is read, and the interval pays nothing for this.
+    if shade_lanes:
+        for i in range(4 * PACKET):
+            buf[i] = 0.0
     # The transmittance, not the opacity, across the loop (over_trans). The stop test
     # stays `acc_a < ert` on `acc_a = 1 - trans`, the float this returns and the driver
     # tests against ert: one criterion in both places, whatever the rounding of 1 - ert.

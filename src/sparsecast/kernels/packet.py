@@ -5,8 +5,8 @@ scalar loop's arithmetic (:func:`.sampler.sample`, :func:`.shade.tf_alpha`,
 :func:`.shade.tf_color`), in loops over the :data:`PACKET` lanes that LLVM vectorises
 (two of them, see below): where it gathers, the positions, the cell look-ups, the
 interpolation and the table blend run as vector instructions. Its reads are adjacent
-pairs, one load each: the trilinear corners along x (:func:`.sample.trilinear_pairs`) and a table row's
-``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
+pairs, one load each: the trilinear corners along x (:func:`.sample.trilinear_pairs`)
+and a table row's ``(r, g), (b, a)`` (:func:`.shade.tf_rgba`), as each read in such a loop is a
 scalar load and an insert per lane. The loop is compiled with ``noalias`` arguments
 (:class:`.vectorize.LaneLoopCompiler`); without it the gathers kept them scalar.
 The operations per lane are the scalar ones in the same order, and Numba forms
