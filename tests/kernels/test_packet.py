@@ -247,7 +247,7 @@ _BYTE_SIGS = {
                       types.float32[:, ::1], types.float64, types.float64, *([types.float64] * 7), types.int64,
                       types.int64, types.float64[::1]),
     "value_packet": (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
-                     *([types.float64] * 7), types.int64, types.float64[::1]),
+                     *([types.float64] * 7), types.int64, types.int64, types.float64[::1]),
 }
 
 
@@ -327,10 +327,17 @@ def test_value_packet_lanes(shape, dtype):
     def one(flat, t):
         return sample(Trilinear(), flat, nx, ny, nz, ray[0] + t * ray[3], ray[1] + t * ray[4], ray[2] + t * ray[5])
 
-    value_packet(Trilinear(), flat, nx, ny, nz, *ray, dt, k, buf)
+    value_packet(Trilinear(), flat, nx, ny, nz, *ray, dt, k, k + PACKET - 1, buf)
     got = [float(v) for v in buf]
     want = [float(one(flat, (k + lane) * dt)) for lane in range(PACKET)]
     assert got == want
+    # Up to k_last only (an interval's last pair end): the lanes past it keep the buffer's.
+    for last in (k, k + 3, k + PACKET - 2):
+        part = np.full(PACKET, -7.0)
+        value_packet(Trilinear(), flat, nx, ny, nz, *ray, dt, k, last, part)
+        n = last - k + 1
+        assert [float(v) for v in part[:n]] == want[:n]
+        assert np.all(part[n:] == -7.0)
 
 
 @pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"),
@@ -338,8 +345,7 @@ def test_value_packet_lanes(shape, dtype):
 def test_value_packet_lane_loop_is_vectorised():
     """The isosurface's value packets vectorise like sample_packet (noalias arguments):
     what made the naive iso marcher 2x faster would otherwise go unnoticed."""
-    sig = (typeof(Trilinear()), types.uint8[::1], types.int64, types.int64, types.int64,
-           *([types.float64] * 7), types.int64, types.float64[::1])
+    sig = _BYTE_SIGS["value_packet"]
     opts = {k: v for k, v in value_packet.targetoptions.items() if k not in ("cache", "nopython")}
     fresh = njit(pipeline_class=LaneLoopCompiler, **opts)(value_packet.py_func)
     fresh.compile(sig)

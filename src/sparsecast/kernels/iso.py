@@ -261,8 +261,9 @@ def _surface(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, wdx, wdy, wdz, i
     return r + w * cr, g + w * cg, b + w * cb, a + w, t
 
 
-def _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):  # pragma: no cover
-    """Field values of lattice samples ``k, k + 1, ...`` into ``buf``; returns how many.
+def _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf):  # pragma: no cover
+    """Field values of lattice samples ``k, k + 1, ...`` into ``buf``; returns how many lanes
+    a packet holds (lanes past ``k_last`` are not computed: see :func:`.packet.value_packet`).
 
     :data:`.packet.PACKET` at once where the sampler and the layout take packets
     (:func:`.packet.value_packet`), else one; the values are :func:`_at`'s either way.
@@ -271,15 +272,15 @@ def _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):  # p
 
 
 @overload(_values, inline="always")
-def _values_ol(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+def _values_ol(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf):
     if packet_capable(sampler, flat):
-        def packets(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
-            value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf)
+        def packets(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf):
+            value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf)
             return PACKET
 
         return packets
 
-    def one(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
+    def one(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf):
         buf[0] = _at(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, k * dt)
         return 1
 
@@ -337,20 +338,21 @@ def iso_interval(
     has_prev = ks - 1 >= k_min
     f_prev = 0.0
     # The samples come in packets (dense trilinear volumes): the pair test reads them
-    # from `buf`; a packet running past `ke` or past termination computes lanes no
-    # one reads (nor counts). The first packet starts at the pair's first sample.
+    # from `buf`; a packet computes no lane past `ke`, and one running past termination
+    # computes lanes no one reads (nor counts). The first packet starts at the pair's
+    # first sample.
     buf = lane_buffer(PACKET)
     lane = 0
     filled = 0
     if has_prev:
-        filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, ks - 1, buf)
+        filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, ks - 1, ke, buf)
         f_prev = buf[0]
         lane = 1
         n_samples += 1
     k = ks
     while k <= ke and a < ert:
         if lane == filled:
-            filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf)
+            filled = _values(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, ke, buf)
             lane = 0
             if not dvr and filled > 1:
                 # Most packets hold no crossing: one test for all their pairs, and

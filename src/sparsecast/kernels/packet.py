@@ -167,20 +167,23 @@ def _thin_sample_packet(sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, o
 
 
 @njit(cache=True, error_model="numpy", pipeline_class=LaneLoopCompiler, **NO_REFCOUNT)
-def value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, buf):
-    """Field values of lattice samples ``k .. k + PACKET - 1`` of a ray into ``buf[:PACKET]``.
+def value_packet(sampler, flat, nx, ny, nz, ox, oy, oz, dx, dy, dz, dt, k, k_last, buf):
+    """Field values of lattice samples ``k .. min(k + PACKET - 1, k_last)`` of a ray into ``buf``.
 
     :func:`sample_packet` without the transfer function: lane ``l`` holds
     :func:`.sampler.sample` at ``o + ((k + l) dt) d``, the same float (the
     isosurface pair test, :func:`.iso.iso_interval`, reads its samples from here).
-    Arguments as for :func:`sample_packet`; ``buf`` must not overlap ``flat``.
+    Arguments as for :func:`sample_packet`; lanes past ``k_last`` are not computed
+    and keep what ``buf`` held, as there (the isosurface intervals of an index's
+    leaves are a few samples long); ``buf`` must not overlap ``flat``.
     """
+    n = min(PACKET, k_last - k + 1)
     if nx >= pairs_min_nx(flat):  # two copies of the lane loop, as in sample_packet
-        for lane in range(PACKET):
+        for lane in range(n):
             t = (k + lane) * dt
             buf[lane] = _lane_sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
     else:
-        for lane in range(PACKET):
+        for lane in range(n):
             t = (k + lane) * dt
             buf[lane] = sample(sampler, flat, nx, ny, nz, ox + t * dx, oy + t * dy, oz + t * dz)
 
