@@ -180,12 +180,7 @@ class Volume:
     ) -> None:
         one_of(nonfinite, "nonfinite", ("raise", "replace"), expected="'raise' or 'replace'")
         arr = np.asarray(data)
-        if arr.ndim != 3:
-            raise VolumeDataError(
-                f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got {arr.ndim}-D shape {arr.shape}"
-            )
-        if min(arr.shape) == 0:
-            raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {arr.shape}")
+        check_voxel_shape(arr.shape, name)
         arr = _coerce_dtype(arr, name)
         value_range = None
         if arr.dtype.kind == "f":
@@ -505,6 +500,31 @@ def _reject(arr: np.ndarray, name: str, supported: str) -> np.ndarray:
     raise VolumeDataError(f"{name!r}: unsupported dtype {arr.dtype}; expected one of {supported}")
 
 
+def check_voxel_shape(shape: tuple[int, ...], name: str) -> tuple[int, int, int]:
+    """``shape`` as ``(nz, ny, nx)``, or the data error every kind of volume raises (in
+    memory, bricked, scanned chunk by chunk) for a shape that is not 3-D or has a
+    zero-size axis, naming the volume ``name``."""
+    shape = tuple(int(n) for n in shape)
+    if len(shape) != 3:
+        raise VolumeDataError(f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got {len(shape)}-D shape {shape}")
+    if min(shape) == 0:
+        raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {shape}")
+    return shape
+
+
+def nonfinite_error(name: str, n_bad: int, every: bool = False) -> VolumeDataError:
+    """The data error for ``n_bad`` NaN or Inf voxels of volume ``name`` under the policy
+    ``nonfinite="raise"``, or (``every``) for a volume with no finite voxel at all, which
+    ``"replace"`` cannot mend (the one wording of the in-memory and the scanned paths)."""
+    if every:
+        return VolumeDataError(f"{name!r}: every voxel is NaN or Inf; nothing to replace them with")
+    return VolumeDataError(
+        f"{name!r}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
+        f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
+        f"min/max)"
+    )
+
+
 def _check_finite(arr: np.ndarray, name: str, policy: str) -> tuple[np.ndarray, tuple[float, float] | None]:
     """``(voxels, value range or None)`` after the NaN/Inf policy."""
     # NaN propagates through min and max and Inf is its own extreme, so two reductions
@@ -515,13 +535,9 @@ def _check_finite(arr: np.ndarray, name: str, policy: str) -> tuple[np.ndarray, 
     finite = np.isfinite(arr)
     n_bad = int(arr.size - np.count_nonzero(finite))
     if policy == "raise":
-        raise VolumeDataError(
-            f"{name!r}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
-            f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
-            f"min/max)"
-        )
+        raise nonfinite_error(name, n_bad)
     if not finite.any():
-        raise VolumeDataError(f"{name!r}: every voxel is NaN or Inf; nothing to replace them with")
+        raise nonfinite_error(name, n_bad, every=True)
     lo = arr[finite].min()
     hi = arr[finite].max()
     return np.nan_to_num(arr, nan=lo, posinf=hi, neginf=lo), None

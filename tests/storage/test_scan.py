@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import dask.array as da
 import numpy as np
 import pytest
@@ -139,3 +141,19 @@ def test_bad_input():
         scan(np.zeros((4, 4)))
     with pytest.raises(VolumeDataError, match="real number"):
         scan(np.zeros((2, 2, 2), complex))
+
+
+@pytest.mark.parametrize("array", [np.zeros((4, 5), np.uint8), np.zeros((3, 0, 5), np.uint8),
+                                   np.full((3, 4, 5), np.nan, np.float32)], ids=["2-D", "zero axis", "all NaN"])
+def test_every_volume_kind_words_a_bad_array_alike(array):
+    """A volume in memory, a bricked one and a chunked scan reject the same array with the
+    same message (one wording, kept in ``sparsecast.volume``), naming the volume."""
+    messages = set()
+    for make in (lambda: sc.Volume(array, name="v.npy"),
+                 lambda: sc.BrickedVolume(array, name="v.npy"),
+                 lambda: scan(SimpleNamespace(array=array, path="v.npy"))):  # as a Source names its file
+        with pytest.raises(VolumeDataError) as err:
+            make()
+        messages.add(str(err.value))
+    assert len(messages) == 1
+    assert next(iter(messages)).startswith("'v.npy': ")

@@ -43,7 +43,7 @@ from .._util.checks import as_int, fail
 from ..errors import ParameterError, SparsecastError, VolumeDataError
 from ..kernels.bricked import BrickedVoxels, gather_bricks, gather_bricks_serial
 from ..kernels.parallel import parallel_section
-from ..volume import SUPPORTED_DTYPES, BrickLabels, BrickStats, Volume
+from ..volume import SUPPORTED_DTYPES, BrickLabels, BrickStats, Volume, check_voxel_shape
 from .scan import scan
 
 __all__ = ["BrickedVolume", "MemoryBudgetError", "parse_memory"]
@@ -159,11 +159,7 @@ class BrickedVolume(Volume):
         progress=None,
         value_range: tuple[float, float] | None = None,
     ) -> None:
-        shape = tuple(int(n) for n in getattr(source, "shape", ()))
-        if len(shape) != 3:
-            raise VolumeDataError(f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got shape {shape}")
-        if min(shape) == 0:
-            raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {shape}")
+        shape = check_voxel_shape(getattr(source, "shape", ()), name)
         B = as_int(brick_size, "brick_size", lo=8, hi=64)
         if B & (B - 1):
             raise fail("brick_size", "a power of two from 8 to 64", brick_size)

@@ -45,7 +45,7 @@ from .._util.progress import ProgressArg, chunk_progress
 from ..errors import VolumeDataError
 from ..kernels.bricks import brick_windows
 from ..kernels.windows import count_values_nogil, window_minmax
-from ..volume import BrickStats
+from ..volume import BrickStats, check_voxel_shape, nonfinite_error
 
 __all__ = ["Scan", "scan", "scan_blocks"]
 
@@ -119,10 +119,7 @@ def _array_of(volume) -> tuple[Any, str, tuple[int, ...] | None]:
         chunks = tuple(c[0] for c in chunks)  # a dask array's chunks: the regular size
     if not hasattr(array, "shape") or not hasattr(array, "dtype"):
         array = np.asarray(array)
-    if len(array.shape) != 3:
-        raise VolumeDataError(f"{name!r}: expected a 3-D array of shape (nz, ny, nx), got shape {tuple(array.shape)}")
-    if min(array.shape) == 0:
-        raise VolumeDataError(f"{name!r}: volume has a zero-size axis, shape {tuple(array.shape)}")
+    check_voxel_shape(array.shape, name)
     return array, name, (tuple(int(c) for c in chunks) if chunks is not None else None)
 
 
@@ -323,15 +320,11 @@ def scan(
         dask.compute(*tasks, scheduler="threads", num_workers=workers)
     n_bad = acc.nan + acc.posinf + acc.neginf
     if n_bad and nonfinite == "raise":
-        raise VolumeDataError(
-            f"{name!r}: {n_bad} voxel(s) are NaN or Inf; expected finite values "
-            f"(pass nonfinite='replace', on the command line --nonfinite replace, to substitute the finite "
-            f"min/max)"
-        )
+        raise nonfinite_error(name, n_bad)
     vmin, vmax = acc.vmin, acc.vmax
     finite = np.isfinite(vmin)
     if not finite.any():
-        raise VolumeDataError(f"{name!r}: every voxel is NaN or Inf; nothing to replace them with")
+        raise nonfinite_error(name, n_bad, every=True)
     lo, hi = float(vmin[finite].min()), float(vmax[np.isfinite(vmax)].max())
     if acc.low is not None:
         # The dense path replaces NaN/-Inf by lo and +Inf by hi before its brick pass.
