@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.borrow import borrowed, keep_alive
+from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.camera import primary_ray
 from ..kernels.tiles import tile_bounds, tile_count
 from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
@@ -149,6 +149,43 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, ti
     return best, nx, ny, nz, face, tile, ha, hb
 
 
+# Parallel drivers whose body is one call into a plain kernel with the traversal
+# inlined (see ._wide_kernels: the parfor passes over an inlined traversal took
+# most of these drivers' 34-37 s compiles).
+@njit(cache=True, **NO_REFCOUNT)
+def _rays_chunk(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+                origins, dirs, t_min, t_max, r0, r1, st_node, st_t, lane_b, fp0, spread, n_levels,
+                out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of rays ``r0..r1-1`` (:func:`cast_rays_rbvh_wide`)."""
+    for r in range(r0, r1):
+        t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
+            box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+            origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max,
+            st_node, st_t, lane_b, fp0, spread, n_levels)
+        out_t[r] = t
+        out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
+        out_face[r], out_tile[r] = f, tl
+        out_uv[r, 0], out_uv[r, 1] = a, b
+
+
+@njit(cache=True, **NO_REFCOUNT)
+def _primary_tile(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+                  params, width, height, tile, st_node, st_t, lane_b, fp0, spread, n_levels,
+                  out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of the primary rays of pixel tile ``tile`` (:func:`cast_primary_rbvh_wide`)."""
+    x0, x1, y0, y1 = tile_bounds(tile, width, height)
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
+            t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
+                box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+                ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, fp0, spread, n_levels)
+            out_t[py, px] = t
+            out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
+            out_face[py, px], out_tile[py, px] = f, tl
+            out_uv[py, px, 0], out_uv[py, px, 1] = a, b
+
+
 @njit(cache=True, parallel=True)
 def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                         atlas_depth, atlas_normal, root, origins, dirs, t_min, t_max, n_stack, fp0, spread,
@@ -160,20 +197,10 @@ def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tile
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for ck in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
-        # Borrowed views: owned arrays passed per ray cost atomic reference counts (kernels.borrow).
-        bx, ch, tr, tf, fa, vn, rec, reci, ad, an = borrowed(
-            (box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal))
-        st_node, st_t, lane_b = borrowed(scratch)
-        for r in range(ck * RAY_CHUNK, min(n, (ck + 1) * RAY_CHUNK)):
-            t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                bx, ch, tr, tf, fa, vn, rec, reci, ad, an, root, origins[r, 0], origins[r, 1], origins[r, 2],
-                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, fp0, spread, n_levels)
-            out_t[r] = t
-            out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
-            out_face[r], out_tile[r] = f, tl
-            out_uv[r, 0], out_uv[r, 1] = a, b
-        keep_alive(scratch)
+        _rays_chunk(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+                    origins, dirs, t_min, t_max, np.int64(ck) * RAY_CHUNK, min(n, (np.int64(ck) + 1) * RAY_CHUNK),
+                    np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32),
+                    fp0, spread, n_levels, out_t, out_n, out_face, out_tile, out_uv)
 
 
 @njit(cache=True, parallel=True)
@@ -187,19 +214,6 @@ def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, t
     fp0 = 0.0 if params[12] != 0.0 else pixel
     spread = pixel if params[12] != 0.0 else 0.0
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32))
-        bx, ch, tr, tf, fa, vn, rec, reci, ad, an = borrowed(
-            (box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal))
-        st_node, st_t, lane_b = borrowed(scratch)
-        x0, x1, y0, y1 = tile_bounds(tile, width, height)
-        for py in range(y0, y1):
-            for px in range(x0, x1):
-                ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
-                t, nx, ny, nz, f, tl, a, b = closest_hit_rbvh_wide(
-                    bx, ch, tr, tf, fa, vn, rec, reci, ad, an, root, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
-                    st_node, st_t, lane_b, fp0, spread, n_levels)
-                out_t[py, px] = t
-                out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
-                out_face[py, px], out_tile[py, px] = f, tl
-                out_uv[py, px, 0], out_uv[py, px, 1] = a, b
-        keep_alive(scratch)
+        _primary_tile(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
+                      params, width, height, np.int64(tile), np.empty(n_stack, np.int32), np.empty(n_stack),
+                      np.empty(WIDTH, np.float32), fp0, spread, n_levels, out_t, out_n, out_face, out_tile, out_uv)

@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.borrow import borrowed, keep_alive
+from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.camera import primary_ray
 from ..kernels.simd import slab4, woop4
 from ..kernels.tiles import tile_bounds, tile_count
@@ -340,6 +340,43 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, root, ox, oy, oz,
     return best, nx, ny, nz, face, -1, ha, hb
 
 
+# The drivers below are Numba parallel loops whose body is one call: a chunk of rays
+# (or a tile of pixels) traced by a plain kernel with the traversal inlined into it.
+# Inlined into the prange body itself, the traversal went through Numba's parfor
+# passes and the parallel gufunc's compile with it: 20-26 s a driver, against about
+# 2-8 s now (one call per 64 rays costs nothing measurable).
+@njit(cache=True, **NO_REFCOUNT)
+def _rays_chunk(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, r0, r1,
+                st_node, st_t, lane_b, lane_t, out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of rays ``r0..r1-1`` (:func:`cast_rays_wide`); no reference counting, so a
+    call per ray into :func:`closest_hit_wide` would count nothing either."""
+    for r in range(r0, r1):
+        t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
+            box, child, tri4, face4, faces, vnormals, root, origins[r, 0], origins[r, 1], origins[r, 2],
+            dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, lane_t)
+        out_t[r] = t
+        out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
+        out_face[r], out_tile[r] = f, tl
+        out_uv[r, 0], out_uv[r, 1] = a, b
+
+
+@njit(cache=True, **NO_REFCOUNT)
+def _primary_tile(box, child, tri4, face4, faces, vnormals, root, params, width, height, tile,
+                  st_node, st_t, lane_b, lane_t, out_t, out_n, out_face, out_tile, out_uv):
+    """Closest hits of the primary rays of pixel tile ``tile`` (:func:`cast_primary_wide`)."""
+    x0, x1, y0, y1 = tile_bounds(tile, width, height)
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
+            t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
+                box, child, tri4, face4, faces, vnormals, root, ox, oy, oz, dx, dy, dz, 0.0, np.inf,
+                st_node, st_t, lane_b, lane_t)
+            out_t[py, px] = t
+            out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
+            out_face[py, px], out_tile[py, px] = f, tl
+            out_uv[py, px, 0], out_uv[py, px, 1] = a, b
+
+
 @njit(cache=True, parallel=True)
 def cast_rays_wide(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, n_stack,
                    out_t, out_n, out_face, out_tile, out_uv):
@@ -347,21 +384,10 @@ def cast_rays_wide(box, child, tri4, face4, faces, vnormals, root, origins, dirs
     n = origins.shape[0]
     n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
     for c in prange(n_chunks):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
-                   np.empty(8))
-        # Borrowed views: passing owned arrays to the per-ray call would cost two
-        # atomic reference-count updates per array per ray (see kernels.borrow).
-        bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_b, lane_t = borrowed(scratch)
-        for r in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
-            t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                bx, ch, t4, f4, fa, vn, root, origins[r, 0], origins[r, 1], origins[r, 2],
-                dirs[r, 0], dirs[r, 1], dirs[r, 2], t_min, t_max, st_node, st_t, lane_b, lane_t)
-            out_t[r] = t
-            out_n[r, 0], out_n[r, 1], out_n[r, 2] = nx, ny, nz
-            out_face[r], out_tile[r] = f, tl
-            out_uv[r, 0], out_uv[r, 1] = a, b
-        keep_alive(scratch)
+        _rays_chunk(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max,
+                    np.int64(c) * RAY_CHUNK, min(n, (np.int64(c) + 1) * RAY_CHUNK), np.empty(n_stack, np.int32),
+                    np.empty(n_stack, np.float32), np.empty(4, np.float32), np.empty(8),
+                    out_t, out_n, out_face, out_tile, out_uv)
 
 
 @njit(cache=True, parallel=True)
@@ -370,18 +396,6 @@ def cast_primary_wide(box, child, tri4, face4, faces, vnormals, root, params, wi
     """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
     :func:`._bvh_kernels.cast_primary`)."""
     for tile in prange(tile_count(width, height)):
-        scratch = (np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
-                   np.empty(8))
-        bx, ch, t4, f4, fa, vn = borrowed((box, child, tri4, face4, faces, vnormals))
-        st_node, st_t, lane_b, lane_t = borrowed(scratch)
-        x0, x1, y0, y1 = tile_bounds(tile, width, height)
-        for py in range(y0, y1):
-            for px in range(x0, x1):
-                ox, oy, oz, dx, dy, dz = primary_ray(params, px, py, width, height)
-                t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
-                    bx, ch, t4, f4, fa, vn, root, ox, oy, oz, dx, dy, dz, 0.0, np.inf, st_node, st_t, lane_b, lane_t)
-                out_t[py, px] = t
-                out_n[py, px, 0], out_n[py, px, 1], out_n[py, px, 2] = nx, ny, nz
-                out_face[py, px], out_tile[py, px] = f, tl
-                out_uv[py, px, 0], out_uv[py, px, 1] = a, b
-        keep_alive(scratch)
+        _primary_tile(box, child, tri4, face4, faces, vnormals, root, params, width, height, np.int64(tile),
+                      np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
+                      np.empty(8), out_t, out_n, out_face, out_tile, out_uv)
