@@ -44,7 +44,7 @@ from ..kernels.layout import voxel_view
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds
 
-__all__ = ["dvr_tile", "dvr_tiles", "dvr_tiles_uncached", "new_scratch", "render_chunk", "render_chunk_uncached",
+__all__ = ["dvr_tiles", "dvr_tiles_uncached", "new_scratch", "render_chunk", "render_chunk_uncached",
            "tiles_kernel"]
 
 
@@ -56,22 +56,32 @@ def _initial(init, has_init, py, px):
     return 0.0, 0.0, 0.0, 0.0
 
 
-# Inlined into dvr_tiles (Numba IR), not a function of its own: a callee compiled
-# apart is linked into its caller's module, and LLVM optimises and emits the linked
-# module again in the caller, so each specialisation paid for the tile loop's code
-# twice (about 0.7 s of LLVM a specialisation).
-@njit(inline="always")
-def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
-    """Render the pixels of one 8x8 tile of the output rectangle.
+# The tile loop is written out in dvr_tiles, not a function of its own: compiled
+# apart, it was linked into its caller's module and optimised and emitted again
+# there (about 0.7 s of LLVM a specialisation), and inlined by Numba
+# (inline="always") its IR was deep-copied and re-typed in every specialisation.
+# Written out, the frame's fields are also read once per chunk, not once per tile.
+# Measured (cold, 28 specialisations in one process: seven indices x DVR / iso x
+# uint8 / float32): 107 s inlined, 86 s written out.
+@njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
+def dvr_tiles(first, last, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
+    """Render the pixels of 8x8 tiles ``first..last-1`` of the output rectangle, without the GIL.
+
+    The frame is spread over threads by :func:`sparsecast.render.schedule.run_tiles`
+    rather than ``prange``: Numba's parallel loops cannot take records (tuples of
+    arrays) as arguments, and chunks handed out by a pool balance the load of
+    sparse frames and let a caller stop between chunks. The loop allocates nothing
+    and runs without reference counting (:data:`sparsecast.kernels.borrow.NO_REFCOUNT`):
+    the caller holds every argument.
 
     Parameters
     ----------
-    tile : int
-        Tile number in the output rectangle (row-major, see :mod:`.kernels.tiles`).
+    first, last : int
+        Tile numbers (row-major, see :mod:`.kernels.tiles`).
     record : NamedTuple
         The index's traversal record (:mod:`sparsecast.index.interval`).
     scratch : ndarray
-        The record's scratch (``make_scratch(record)``), reused from tile to tile.
+        The record's scratch (:func:`new_scratch`), one per chunk, reused from tile to tile.
     data : (nz, ny, nx) ndarray or BrickedVoxels
         Voxels: a C-contiguous array, or a bricked volume's page table and pool
         (:mod:`sparsecast.kernels.bricked`); each compiles its own loop.
@@ -88,8 +98,6 @@ def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, ou
     h, w = out_samples.shape
     has_init = init.shape[0] > 0
     merge = coalesces(record)
-    # Compiled without reference counting (kernels.borrow.NO_REFCOUNT): the caller
-    # holds every argument, and nothing here allocates.
     flat, nx, ny, nz = voxel_view(data)  # a dense volume's 1-D view, or a bricked one's pages
     cam = frame.cam
     origin = frame.origin
@@ -119,115 +127,102 @@ def dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, ou
     capping = cap[0] != 0.0
     cut_lo = frame.cut_lo
     cut_hi = frame.cut_hi
-    x0, x1, y0, y1 = tile_bounds(tile, w, h)
-    # Indices that cull once per tile (interval.start_tile) see the tile's corner rays
-    # and the clip (box and planes); for the others the branch folds away at compile
-    # time, corner rays included.
-    live = True
-    if culls_tiles(record):
-        live = start_tile(
-            record, scratch,
-            tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
-            (cx0, cy0, cz0, cx1, cy1, cz1), planes,
-        )
-    if not live and not capping:
-        # No ray of the tile meets an interval (and no cap sample is due): each pixel is
-        # what it would be after a traversal that yields nothing, without the ray set-up.
+    for tile in range(first, last):
+        x0, x1, y0, y1 = tile_bounds(tile, w, h)
+        # Indices that cull once per tile (interval.start_tile) see the tile's corner rays
+        # and the clip (box and planes); for the others the branch folds away at compile
+        # time, corner rays included.
+        live = True
+        if culls_tiles(record):
+            live = start_tile(
+                record, scratch,
+                tile_corner_rays(cam, fx0 + x0, fx0 + x1, fy0 + y0, fy0 + y1, width, height, origin, inv_spacing),
+                (cx0, cy0, cz0, cx1, cy1, cz1), planes,
+            )
+        if not live and not capping:
+            # No ray of the tile meets an interval (and no cap sample is due): each pixel is
+            # what it would be after a traversal that yields nothing, without the ray set-up.
+            for py in range(y0, y1):
+                for px in range(x0, x1):
+                    r, g, b, a = _initial(init, has_init, py, px)
+                    write_pixel(out_rgba, py, px, r, g, b, a, background)
+                    out_samples[py, px] = 0
+                    out_nonempty[py, px] = 0
+            continue
         for py in range(y0, y1):
             for px in range(x0, x1):
+                ox, oy, oz, dx, dy, dz, wdx, wdy, wdz = index_space_ray(
+                    cam, fx0 + px, fy0 + py, width, height, origin, inv_spacing,
+                )
+                ray = (ox, oy, oz, dx, dy, dz)
                 r, g, b, a = _initial(init, has_init, py, px)
-                write_pixel(out_rgba, py, px, r, g, b, a, background)
-                out_samples[py, px] = 0
-                out_nonempty[py, px] = 0
-        return
-    for py in range(y0, y1):
-        for px in range(x0, x1):
-            ox, oy, oz, dx, dy, dz, wdx, wdy, wdz = index_space_ray(
-                cam, fx0 + px, fy0 + py, width, height, origin, inv_spacing,
-            )
-            ray = (ox, oy, oz, dx, dy, dz)
-            r, g, b, a = _initial(init, has_init, py, px)
-            n_samples = 0
-            n_nonempty = 0
-            k_lo, k_hi, t_lo, t_hi = clip_lattice(
-                ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
-                ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt,
-            )
-            entered = -1
-            if k_lo <= k_hi and planes.shape[0] > 0:
-                k_lo, k_hi, t_lo, t_hi, entered = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi,
-                                                              k_lo, k_hi)
-            k_next = k_lo
-            if capping and k_lo <= k_hi and a < ert:
-                face, gx, gy, gz = entry_face(ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
-                                              cut_lo, cut_hi, planes, entered, t_lo)
-                if face:
-                    r, g, b, a, nne = cap_sample(
-                        sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
-                        wdx, wdy, wdz, inv_spacing, dt, k_lo, gx, gy, gz, r, g, b, a, cap,
-                    )
-                    n_samples += 1
-                    n_nonempty += nne
-                    k_next = k_lo + 1
-            if k_next <= k_hi and a < ert:
-                state = start_ray(record, scratch, ray, t_lo, t_hi)
-                seg_open = False
-                seg_t0 = 0.0
-                seg_t1 = -math.inf
-                while True:
-                    t0, t1, state = next_interval(record, scratch, ray, state,
-                                                  seg_t1 if seg_open else -math.inf)
-                    more = t0 <= t1
-                    # What to composite now: [s0, s1] (one call site).
-                    go = False
-                    s0 = 0.0
-                    s1 = 0.0
-                    if merge:
-                        if more and seg_open and t0 <= seg_t1:
-                            # A touching interval extends the open segment.
-                            if t1 > seg_t1:
-                                seg_t1 = t1
-                            continue
-                        if seg_open:
-                            go = True
-                            s0 = seg_t0
-                            s1 = seg_t1
-                        seg_open = more
-                        seg_t0 = t0
-                        seg_t1 = t1
-                    elif more:
-                        s0 = max(t0, t_lo)
-                        s1 = min(t1, t_hi)
-                        go = s0 <= s1
-                    if go:
-                        r, g, b, a, k_next, ns, nne = integrate(
-                            record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing,
-                            dt, ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_lo, k_hi, (r, g, b, a),
+                n_samples = 0
+                n_nonempty = 0
+                k_lo, k_hi, t_lo, t_hi = clip_lattice(
+                    ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
+                    ox0, oy0, oz0, ox1, oy1, oz1, any_open, dt,
+                )
+                entered = -1
+                if k_lo <= k_hi and planes.shape[0] > 0:
+                    k_lo, k_hi, t_lo, t_hi, entered = clip_planes(ox, oy, oz, dx, dy, dz, planes, dt, t_lo, t_hi,
+                                                                  k_lo, k_hi)
+                k_next = k_lo
+                if capping and k_lo <= k_hi and a < ert:
+                    face, gx, gy, gz = entry_face(ox, oy, oz, dx, dy, dz, cx0, cy0, cz0, cx1, cy1, cz1,
+                                                  cut_lo, cut_hi, planes, entered, t_lo)
+                    if face:
+                        r, g, b, a, nne = cap_sample(
+                            sampler, flat, nx, ny, nz, table, v_lo, scale, ox, oy, oz, dx, dy, dz,
+                            wdx, wdy, wdz, inv_spacing, dt, k_lo, gx, gy, gz, r, g, b, a, cap,
                         )
-                        n_samples += ns
+                        n_samples += 1
                         n_nonempty += nne
-                        if a >= ert:
+                        k_next = k_lo + 1
+                if k_next <= k_hi and a < ert:
+                    state = start_ray(record, scratch, ray, t_lo, t_hi)
+                    seg_open = False
+                    seg_t0 = 0.0
+                    seg_t1 = -math.inf
+                    while True:
+                        t0, t1, state = next_interval(record, scratch, ray, state,
+                                                      seg_t1 if seg_open else -math.inf)
+                        more = t0 <= t1
+                        # What to composite now: [s0, s1] (one call site).
+                        go = False
+                        s0 = 0.0
+                        s1 = 0.0
+                        if merge:
+                            if more and seg_open and t0 <= seg_t1:
+                                # A touching interval extends the open segment.
+                                if t1 > seg_t1:
+                                    seg_t1 = t1
+                                continue
+                            if seg_open:
+                                go = True
+                                s0 = seg_t0
+                                s1 = seg_t1
+                            seg_open = more
+                            seg_t0 = t0
+                            seg_t1 = t1
+                        elif more:
+                            s0 = max(t0, t_lo)
+                            s1 = min(t1, t_hi)
+                            go = s0 <= s1
+                        if go:
+                            r, g, b, a, k_next, ns, nne = integrate(
+                                record, scratch, state, mode, sampler, flat, nx, ny, nz, table, v_lo, scale, inv_spacing,
+                                dt, ert, shading, ray, (wdx, wdy, wdz), s0, s1, k_next, k_lo, k_hi, (r, g, b, a),
+                            )
+                            n_samples += ns
+                            n_nonempty += nne
+                            if a >= ert:
+                                break
+                        if not more:
                             break
-                    if not more:
-                        break
-            write_pixel(out_rgba, py, px, r, g, b, a, background)
-            out_samples[py, px] = n_samples
-            out_nonempty[py, px] = n_nonempty
+                write_pixel(out_rgba, py, px, r, g, b, a, background)
+                out_samples[py, px] = n_samples
+                out_nonempty[py, px] = n_nonempty
 
-
-@njit(cache=True, nogil=True, error_model="numpy", **NO_REFCOUNT)
-def dvr_tiles(first, last, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty):
-    """Render tiles ``first..last-1`` (see :func:`dvr_tile`), without the GIL.
-
-    The frame is spread over threads by :func:`sparsecast.render.schedule.run_tiles`
-    rather than ``prange``: Numba's parallel loops cannot take records (tuples of
-    arrays) as arguments, and chunks handed out by a pool balance the load of
-    sparse frames and let a caller stop between chunks. ``scratch`` is the
-    record's (:func:`new_scratch`), one per chunk: the loop allocates nothing and
-    runs without reference counting (:data:`sparsecast.kernels.borrow.NO_REFCOUNT`).
-    """
-    for tile in range(first, last):
-        dvr_tile(tile, record, scratch, data, frame, init, out_rgba, out_samples, out_nonempty)
 
 
 @njit(cache=True)
