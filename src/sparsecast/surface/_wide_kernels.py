@@ -343,13 +343,15 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, root, ox, oy, oz,
 # The drivers below are Numba parallel loops whose body is one call: a chunk of rays
 # (or a tile of pixels) traced by a plain kernel with the traversal inlined into it.
 # Inlined into the prange body itself, the traversal went through Numba's parfor
-# passes and the parallel gufunc's compile with it: 20-26 s a driver, against about
-# 2-8 s now (one call per 64 rays costs nothing measurable).
+# passes and the parallel gufunc's compile with it: 20-26 s a driver cold, 11-12 s now,
+# the chunk kernel's own compile included (one call per 64 rays costs nothing measurable).
+# The index is passed as np.int64: the parfor types it uint64, and a uint64 argument
+# compiled the chunk kernel a second time.
 @njit(cache=True, **NO_REFCOUNT)
 def _rays_chunk(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, r0, r1,
                 st_node, st_t, lane_b, lane_t, out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of rays ``r0..r1-1`` (:func:`cast_rays_wide`); no reference counting, so a
-    call per ray into :func:`closest_hit_wide` would count nothing either."""
+    """Closest hits of rays ``r0..r1-1`` (:func:`cast_rays_wide`), :func:`closest_hit_wide` inlined;
+    compiled without reference counting (the caller holds every array)."""
     for r in range(r0, r1):
         t, nx, ny, nz, f, tl, a, b = closest_hit_wide(
             box, child, tri4, face4, faces, vnormals, root, origins[r, 0], origins[r, 1], origins[r, 2],
