@@ -1,7 +1,8 @@
 """The naive marcher against the independent NumPy reference (``tests/reference.py``, written
 from the contract without the Numba kernels): images to 1e-5 per channel, sample counts exactly.
 
-Only float32 and uint8 volumes are rendered, to keep Numba compilations to a minimum.
+Every scene runs on float32 and uint8 volumes; each other supported dtype (uint16, int16,
+float64) renders a few scenes only, as each dtype compiles the marcher once more.
 """
 
 from __future__ import annotations
@@ -35,6 +36,32 @@ def test_naive_matches_reference(dtype, camera_name):
     ]
     for tf, kw in zip(make_tfs(vr), settings_):
         assert_matches_reference(vol, tf, cam, 16, 12, **kw)
+
+
+#: the other supported dtypes, with values as such data comes: 12-bit CT stored in uint16,
+#: CT in Hounsfield units (negative, air at -1024) in int16, a signed float64 field
+_OTHER_DTYPES = {
+    "uint16": lambda v: np.rint(v * 4095.0).astype(np.uint16),
+    "int16": lambda v: np.rint(v * 4095.0 - 1024.0).astype(np.int16),
+    "float64": lambda v: v * 3.0 - 0.75,
+}
+
+
+@pytest.mark.parametrize("camera_name", ["orbit-persp-az30-el20", "orbit-ortho-az45-el89.9",
+                                         "axis-y-ortho", "inside-persp"])
+@pytest.mark.parametrize("dtype", list(_OTHER_DTYPES))
+def test_naive_matches_reference_other_dtypes(dtype, camera_name):
+    rng = np.random.default_rng(zlib.crc32(f"{dtype}/{camera_name}".encode()))
+    vals = rng.random(_SHAPE) * (rng.random(_SHAPE) < 0.6)
+    vol = Volume(_OTHER_DTYPES[dtype](vals), spacing=_SPACING, origin=_ORIGIN)
+    assert vol.dtype == np.dtype(dtype)
+    lo, hi = vol.value_range
+    assert lo < 0.0 if dtype != "uint16" else lo == 0.0  # negative voxels where the dtype has them
+    cam = camera_set(vol)[camera_name]
+    for tf, kw in zip(make_tfs((lo, hi)), [dict(dt=0.37, ert=0.99), dict(dt=0.5, ert=1.0, background="white"),
+                                          dict(dt=1.3, ert=0.6)]):
+        img, _ = assert_matches_reference(vol, tf, cam, 16, 12, **kw)
+        assert img.rgba[..., 3].max() > 0.5  # something visible: the comparison means something
 
 
 def test_default_dt_matches_reference(rng):
