@@ -105,6 +105,37 @@ def test_index_naming_an_unimportable_type_is_a_cache_miss(tmp_path, monkeypatch
     assert cache._load_index() == {}
 
 
+def test_a_save_waits_for_the_folders_lock(tmp_path):
+    """Processes saving specialisations of one kernel at once could both take data file 1
+    (pytest-xdist workers, compile --jobs, Dask workers): each save holds an exclusive
+    lock on one file of the kernel folder."""
+    import fcntl
+    import threading
+
+    from numba.core.caching import IndexDataCacheFile
+
+    folder = kernel_cache.configure()
+    if folder is None:
+        pytest.skip("Numba's default cache location (SPARSECAST_CACHE_DIR=off)")
+    cache = IndexDataCacheFile(str(tmp_path), "kernel-y", "stamp")
+    saved = threading.Event()
+
+    def save():
+        cache.save(("sig", 1), b"machine code")
+        saved.set()
+
+    with open(folder / kernel_cache.SAVE_LOCK, "a") as other:  # another process saving, as it were
+        fcntl.flock(other, fcntl.LOCK_EX)
+        thread = threading.Thread(target=save)
+        thread.start()
+        assert not saved.wait(0.5)
+    thread.join(30)
+    assert saved.is_set()
+    assert cache.load(("sig", 1)) == b"machine code"
+    assert kernel_cache.configure() == folder  # idempotent: the lock is wrapped once
+    assert not hasattr(IndexDataCacheFile.save._sparsecast_unlocked, "_sparsecast_unlocked")
+
+
 def test_compile_clock_counts_compilation_only():
     from numba import njit
 

@@ -114,6 +114,7 @@ def configure() -> Path | None:
     os.environ["NUMBA_CACHE_DIR"] = str(folder)  # the same folder for subprocesses
     os.environ[_OWN_FOLDER] = str(folder)
     _tolerate_foreign_indexes()
+    _serialise_saves(folder)
     _configured = folder
     return folder
 
@@ -143,6 +144,45 @@ def _tolerate_foreign_indexes() -> None:
 
     _load_index._sparsecast_tolerant = True  # type: ignore[attr-defined]
     IndexDataCacheFile._load_index = _load_index
+
+
+#: in the cache folder: held while a kernel is saved (see _serialise_saves)
+SAVE_LOCK = ".save.lock"
+
+
+def _serialise_saves(folder: Path) -> None:
+    """Save one kernel at a time across the processes that share ``folder``.
+
+    Numba saves a kernel by reading its cache index, taking the first free data-file
+    number, writing the index back and then the data file, with no lock. Two processes
+    saving two specialisations of one kernel at once (pytest-xdist workers, ``sparsecast
+    compile --jobs``, Dask workers on one machine) could both take number 1: one
+    index entry is lost, or worse, left naming a data file that holds the other's
+    machine code, which a later process would load for the wrong argument types.
+    An exclusive ``flock`` on one file of the folder around each save rules that out;
+    a save takes milliseconds, against seconds of compiling, so nobody waits long.
+    Loads need no lock: every file is written whole and renamed into place.
+    """
+    try:
+        import fcntl
+
+        from numba.core.caching import IndexDataCacheFile
+    except ImportError:  # no flock (Windows) or another Numba layout: keep its behaviour
+        return
+    save = getattr(IndexDataCacheFile.save, "_sparsecast_unlocked", IndexDataCacheFile.save)
+    lock_path = folder / SAVE_LOCK
+
+    def _save(self, key, data):
+        try:
+            fh = open(lock_path, "a")
+        except OSError:  # the folder went read-only: save as Numba would
+            return save(self, key, data)
+        with fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)  # released when fh is closed
+            return save(self, key, data)
+
+    _save._sparsecast_unlocked = save  # type: ignore[attr-defined]
+    IndexDataCacheFile.save = _save
 
 
 def cache_dir() -> Path | None:
