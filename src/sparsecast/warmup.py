@@ -18,15 +18,18 @@ A step that finds its kernels in the cache takes milliseconds.
 
 from __future__ import annotations
 
+import multiprocessing
+import queue
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import kernel_cache
-from ._util.checks import fail, one_of
+from ._util.checks import as_int, fail, one_of
 from .camera import Camera
 from .errors import ParameterError
 from .index import available_indices, build_index, parse_index_spec
@@ -73,11 +76,16 @@ class CompileStep:
         What it compiles, e.g. ``"volume uint8 kdtree-deep: build, frame"``.
     run : callable
         Takes no argument; returns nothing.
+    lane : str
+        Steps of one lane share kernels (a dtype's volume steps share its marcher and
+        samplers) and run in one process, in plan order (:func:`compile_kernels` with
+        ``jobs > 1``); empty: the group is the lane.
     """
 
     group: str
     label: str
     run: Callable[[], None] = field(repr=False)
+    lane: str = ""
 
 
 @dataclass
@@ -90,15 +98,21 @@ class CompileReport:
         Per step: wall time (compilation, cache loads and the tiny run), and the
         part of it Numba spent compiling (0 when everything came from the cache).
     total_ms, compile_ms : float
-        Sums over the steps.
+        Sums over the steps (with several processes, more than the wall time).
     cache_dir : Path or None
         The kernel cache folder (None: Numba's default beside the sources).
+    wall_ms : float
+        Wall time of the whole run.
+    jobs : int
+        Processes that compiled (1: this one).
     """
 
     steps: list[tuple[str, float, float]]
     total_ms: float
     compile_ms: float
     cache_dir: Path | None
+    wall_ms: float = 0.0
+    jobs: int = 1
 
 
 def _dtypes(dtypes: str | Sequence[str] | None, name: str) -> list[np.dtype]:
@@ -182,17 +196,18 @@ def plan(
         mode_specs = [s for s in (specs if indices is not None else AUTO_INDICES)
                       if s in specs and parse_index_spec(s)[1].get("mode", "ess") == "ess"]
         for dtype in _dtypes(dtypes, names[0]):
+            lane = f"volume {dtype}"
             steps.append(CompileStep("volume", f"volume {dtype}: brick statistics",
-                                     _bind(_brick_stats, dtype)))
-            steps.extend(CompileStep("volume", f"volume {dtype} {spec}: build, frame", _bind(_volume, dtype, spec))
-                         for spec in specs)
+                                     _bind(_brick_stats, dtype), lane))
+            steps.extend(CompileStep("volume", f"volume {dtype} {spec}: build, frame", _bind(_volume, dtype, spec),
+                                     lane) for spec in specs)
             steps.extend(CompileStep("volume", f"volume {dtype} iso {spec}: iso, iso+dvr frames",
-                                     _bind(_iso, dtype, spec)) for spec in mode_specs)
+                                     _bind(_iso, dtype, spec), lane) for spec in mode_specs)
             steps.extend(CompileStep("volume", f"volume {dtype} bricked {spec}: frame",
-                                     _bind(_bricked, dtype, spec)) for spec in mode_specs)
+                                     _bind(_bricked, dtype, spec), lane) for spec in mode_specs)
             if dtype.kind in "iu":  # label volumes: integer ids, nearest and smooth sampling
                 steps.extend(CompileStep("volume", f"volume {dtype} labels {spec}: build, frames",
-                                         _bind(_labels, dtype, spec)) for spec in mode_specs)
+                                         _bind(_labels, dtype, spec), lane) for spec in mode_specs)
     if "surface" in chosen:
         steps += [
             CompileStep("surface", "surface BVH: build", _bvh_build),
@@ -213,6 +228,7 @@ def compile_kernels(
     progress: Callable[[int, int, str], None] | None = None,
     *,
     names: tuple[str, str, str] = ("dtypes", "indices", "groups"),
+    jobs: int = 1,
 ) -> CompileReport:
     """Compile (or load from the on-disk cache) every kernel of the chosen groups.
 
@@ -221,13 +237,26 @@ def compile_kernels(
     dtypes, indices, groups, names
         See :func:`plan`.
     progress : callable(done, total, label), optional
-        Called before each step (``done`` steps finished, ``label`` the next one)
-        and once more with ``done == total`` and ``label == ""``.
+        Called as each step starts (``done`` steps finished, ``label`` the step
+        starting) and once more with ``done == total`` and ``label == ""``.
+    jobs : int, default 1
+        Processes compiling at once. Numba compiles one function at a time per
+        process (a global lock), so a machine's cores compile in parallel only in
+        processes of their own: with ``jobs > 1`` the plan's lanes (a dtype's volume
+        steps, the surface steps, particles; see :class:`CompileStep`) run in that many
+        spawned processes, each lane's steps in order in one of them, all writing the
+        same kernel cache. 1 runs every step here. An index registered outside the
+        package (``indices`` naming one) runs here too: a fresh process does not know it.
 
     Returns
     -------
     CompileReport
-        Per-step and total times, and the cache folder.
+        Per-step times (in plan order), their sums, the wall time and the cache folder.
+
+    Raises
+    ------
+    ParameterError
+        A bad dtype, index, group or ``jobs``.
 
     Examples
     --------
@@ -236,18 +265,105 @@ def compile_kernels(
     >>> report.cache_dir                                                                      # doctest: +SKIP
     PosixPath('/home/me/.cache/sparsecast/kernels-...')
     """
+    jobs = as_int(jobs, "jobs", lo=1)
     steps = plan(dtypes, indices, groups, names=names)
-    done: list[tuple[str, float, float]] = []
-    for i, step in enumerate(steps):
-        if progress is not None:
-            progress(i, len(steps), step.label)
-        c0 = kernel_cache.compile_seconds()
-        t0 = time.perf_counter()
-        step.run()
-        done.append((step.label, (time.perf_counter() - t0) * 1e3, (kernel_cache.compile_seconds() - c0) * 1e3))
+    lanes = _lanes(steps)
+    t0 = time.perf_counter()
+    if jobs == 1 or len(lanes) < 2 or not _spawnable(indices):
+        done = [_run_step(step, i, len(steps), progress) for i, step in enumerate(steps)]
+        jobs = 1
+    else:
+        jobs = min(jobs, len(lanes))
+        done = _run_lanes((dtypes, indices, groups, names), steps, lanes, jobs, progress)
     if progress is not None:
         progress(len(steps), len(steps), "")
-    return CompileReport(done, sum(s[1] for s in done), sum(s[2] for s in done), kernel_cache.cache_dir())
+    return CompileReport(done, sum(s[1] for s in done), sum(s[2] for s in done), kernel_cache.cache_dir(),
+                         (time.perf_counter() - t0) * 1e3, jobs)
+
+
+def _run_step(step: CompileStep, i: int, total: int,
+              progress: Callable[[int, int, str], None] | None) -> tuple[str, float, float]:
+    if progress is not None:
+        progress(i, total, step.label)
+    c0 = kernel_cache.compile_seconds()
+    t0 = time.perf_counter()
+    step.run()
+    return step.label, (time.perf_counter() - t0) * 1e3, (kernel_cache.compile_seconds() - c0) * 1e3
+
+
+def _lanes(steps: Sequence[CompileStep]) -> list[list[int]]:
+    """Step numbers by lane, each lane in plan order, the lanes in order of first step
+    (the volume dtypes, the longest, first: the pool ends on the short ones)."""
+    lanes: dict[str, list[int]] = {}
+    for i, step in enumerate(steps):
+        lanes.setdefault(step.lane or step.group, []).append(i)
+    return list(lanes.values())
+
+
+def _spawnable(indices: Sequence[str] | str | None) -> bool:
+    """Whether a fresh process knows every index named (the package's own)."""
+    from .index.registry import index_class
+
+    if indices is None:
+        return True
+    specs = [indices] if isinstance(indices, str) else list(indices)
+    return all(index_class(parse_index_spec(s)[0]).__module__.startswith("sparsecast.") for s in specs)
+
+
+def _run_lanes(args: tuple, steps: Sequence[CompileStep], lanes: list[list[int]], jobs: int,
+               progress: Callable[[int, int, str], None] | None) -> list[tuple[str, float, float]]:
+    """Run ``lanes`` in ``jobs`` spawned processes (see :func:`compile_kernels`); per-step
+    results in plan order. Progress comes back over a queue as steps start and end."""
+    ctx = multiprocessing.get_context("spawn")  # not fork: the parent may hold Numba's threads
+    events = ctx.Queue()
+    results: dict[int, tuple[str, float, float]] = {}
+    finished = 0
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_lane_worker,
+                               initargs=(events,))
+    try:
+        futures = [pool.submit(_run_lane, args, lane) for lane in lanes]
+        pending = set(futures)
+        while pending:
+            _, pending = wait(pending, timeout=0.2)
+            for f in futures:
+                if f.done() and f.exception() is not None:
+                    raise f.exception()
+            while True:
+                try:
+                    kind, i = events.get_nowait()
+                except queue.Empty:
+                    break
+                if kind == "done":
+                    finished += 1
+                elif progress is not None:
+                    progress(finished, len(steps), steps[i].label)
+        for f in futures:
+            results.update(f.result())
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    return [results[i] for i in range(len(steps))]
+
+
+_events = None  # the lane workers' progress queue (set by _init_lane_worker)
+
+
+def _init_lane_worker(events) -> None:
+    global _events
+    _events = events
+
+
+def _run_lane(args: tuple, numbers: list[int]) -> dict[int, tuple[str, float, float]]:
+    """In a worker: plan again (the same arguments give the same steps) and run ``numbers``."""
+    dtypes, indices, groups, names = args
+    steps = plan(dtypes, indices, groups, names=names)
+    out = {}
+    for i in numbers:
+        _events.put(("start", i))
+        out[i] = _run_step(steps[i], i, len(steps), None)
+        _events.put(("done", i))
+    return out
 
 
 def _bind(fn: Callable, *args) -> Callable[[], None]:

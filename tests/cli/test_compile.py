@@ -14,7 +14,8 @@ import pytest
 from cli_runner import run_cli
 from sparsecast import available_indices, kernel_cache
 from sparsecast.index.registry import index_class
-from sparsecast.warmup import APPROXIMATE_MODES, AUTO_INDICES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, plan
+from sparsecast import ParameterError, compile_kernels
+from sparsecast.warmup import APPROXIMATE_MODES, AUTO_INDICES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, _lanes, plan
 
 
 def test_full_plan_covers_every_index_dtype_and_group():
@@ -90,20 +91,24 @@ def _sparsecast(cache: Path, *args: str) -> str:
 
 
 def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path):
-    """A subset (one dtype, one index: four steps) in a subprocess with its own cache folder."""
-    args = ("compile", "--only", "volume", "--dtype", "float32", "--index", "naive")
+    """A subset (one dtype, one index: four volume steps; and particles) in a subprocess with
+    its own cache folder, the two lanes in two processes of their own."""
+    args = ("compile", "--only", "volume", "--only", "particles", "--dtype", "float32", "--index", "naive",
+            "--jobs", "2")
     cache = tmp_path / "cache"
     first = _sparsecast(cache, *args)
-    m = re.search(r"compiled 4 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s", first)
+    m = re.search(r"compiled 5 kernel groups in ([\d.]+) s \(Numba compiling ([\d.]+) s in 2 processes", first)
     assert m, first
     assert float(m.group(2)) > 0
     folder = cache / f"kernels-{kernel_cache.source_hash()}"
     assert f"cache {folder}" in first
     cached = {p.name.split("-")[0] for p in folder.rglob("*.nbi")}
-    # The driver (specialised for the naive record and float32) and the brick kernel are cached.
-    assert {"driver.dvr_tiles", "driver.new_scratch", "windows.window_minmax"} <= cached, sorted(cached)
-    second = _sparsecast(cache, *args)
-    m2 = re.search(r"Numba compiling ([\d.]+) s", second)
+    # The driver (specialised for the naive record and float32) and the brick kernel are cached,
+    # and the particle renderer, compiled by the other process, in the same folder.
+    assert {"driver.dvr_tiles", "driver.new_scratch", "windows.window_minmax",
+            "particles.particle_kernel"} <= cached, sorted(cached)
+    second = _sparsecast(cache, *args[:-2], "--jobs", "1")  # one process: loads what the two compiled
+    m2 = re.search(r"Numba compiling ([\d.]+) s;", second)
     assert m2 and float(m2.group(1)) == 0.0, second  # everything came from the cache
     # What compile compiled is what render runs: a float32 volume with that index compiles nothing.
     vol = tmp_path / "vol.npy"
@@ -114,6 +119,47 @@ def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path)
     line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "--mode", "iso",
                        "--iso", "0.5", "-o", str(tmp_path / "b.png"))
     assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
+
+
+def test_lanes_keep_each_dtype_and_group_in_plan_order():
+    steps = plan(dtypes=["uint8", "float32"], indices=["naive", "grid-pc"], groups=["volume", "surface", "particles"])
+    lanes = _lanes(steps)
+    assert sorted(i for lane in lanes for i in lane) == list(range(len(steps)))
+    assert [steps[lane[0]].label for lane in lanes] == [
+        "volume uint8: brick statistics", "volume float32: brick statistics", "surface BVH: build",
+        "particles: BIH build, frame"]
+    for lane in lanes:
+        assert lane == sorted(lane)
+        assert len({steps[i].lane or steps[i].group for i in lane}) == 1
+    assert all(" uint8" in steps[i].label for i in lanes[0]) and all(" float32" in steps[i].label for i in lanes[1])
+
+
+def test_parallel_run_reports_every_step_in_plan_order_with_progress():
+    """Two lanes in two spawned processes, on this session's kernel cache."""
+    seen = []
+    report = compile_kernels(dtypes=["uint8"], indices=["naive"], groups=["volume", "particles"],
+                             progress=lambda done, total, label: seen.append((done, total, label)), jobs=2)
+    labels = [s.label for s in plan(dtypes=["uint8"], indices=["naive"], groups=["volume", "particles"])]
+    assert report.jobs == 2 and [s[0] for s in report.steps] == labels
+    assert all(ms > 0 for _, ms, _ in report.steps)
+    assert report.total_ms >= max(ms for _, ms, _ in report.steps) and report.wall_ms > 0
+    assert sorted(label for _, _, label in seen[:-1]) == sorted(labels)  # each step, as it started
+    assert seen[-1] == (len(labels), len(labels), "")
+    assert all(done < len(labels) for done, _, _ in seen[:-1])
+
+
+def test_jobs_must_be_a_positive_integer():
+    with pytest.raises(ParameterError, match="jobs"):
+        compile_kernels(groups=["particles"], jobs=0)
+
+
+def test_an_index_registered_here_compiles_here(monkeypatch):
+    """A fresh process would not know it: jobs > 1 falls back to this process."""
+    from sparsecast.warmup import _spawnable
+
+    assert _spawnable(None) and _spawnable(["naive", "bih:mode=multi-sample"])
+    monkeypatch.setattr(index_class("naive"), "__module__", "someone.elses")
+    assert not _spawnable(["naive"])
 
 
 def _fake_clock(monkeypatch, module: str, seconds: list[float]) -> None:
