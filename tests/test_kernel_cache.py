@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import sparsecast
@@ -134,6 +135,32 @@ def test_a_save_waits_for_the_folders_lock(tmp_path):
     assert cache.load(("sig", 1)) == b"machine code"
     assert kernel_cache.configure() == folder  # idempotent: the lock is wrapped once
     assert not hasattr(IndexDataCacheFile.save._sparsecast_unlocked, "_sparsecast_unlocked")
+
+
+def test_first_compile_is_announced_once(monkeypatch):
+    from numba import njit
+
+    monkeypatch.setattr(kernel_cache, "_announce", None)
+    said = []
+    kernel_cache.announce_first_compile(lambda: said.append(1))
+
+    @njit
+    def f(x):
+        return x + 1
+
+    @njit
+    def g(x):
+        return f(x) * 2  # a nested compile, then another kernel: still one note
+
+    assert g(1) == 4 and said == [1]
+    assert f(1.5) == 2.5 and said == [1]
+
+    kernel_cache.announce_first_compile(lambda: said.append(2))
+    kernel_cache.announce_first_compile(None)  # withdrawn before any compile
+    assert f(2j) == 1 + 2j and said == [1]
+
+    kernel_cache.announce_first_compile(lambda: 1 / 0)  # a failing note does not stop a compile
+    assert f(np.int8(3)) == 4
 
 
 def test_compile_clock_counts_compilation_only():

@@ -22,9 +22,10 @@ import os
 import pickle
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["configure", "source_hash", "cache_dir", "compile_seconds", "compile_note"]
+__all__ = ["configure", "source_hash", "cache_dir", "compile_seconds", "compile_note", "announce_first_compile"]
 
 #: folders of other source hashes older than this are deleted
 PRUNE_DAYS = 14
@@ -216,6 +217,7 @@ def _install_compile_clock() -> None:
         def on_start(self, ev) -> None:
             if self._depth == 0:
                 self._t0 = time.perf_counter()
+                _announce_once()
             self._depth += 1
 
         def on_end(self, ev) -> None:
@@ -225,6 +227,32 @@ def _install_compile_clock() -> None:
 
     _clock = _CompileClock()
     event.register("numba:compile", _clock)
+
+
+_announce: Callable[[], None] | None = None
+
+
+def announce_first_compile(note: Callable[[], None] | None) -> None:
+    """Call ``note()`` once, as this process starts compiling its first kernel (a cache miss).
+
+    The command line tells a user at a terminal why the first render of an index and
+    dtype takes a minute where later ones take a second (see :func:`sparsecast.cli.main`).
+    None withdraws a note not yet given. Nothing is called when every kernel comes from
+    the cache; an exception from ``note`` is ignored (compiling goes on).
+    """
+    global _announce
+    _install_compile_clock()
+    _announce = note
+
+
+def _announce_once() -> None:
+    global _announce
+    note, _announce = _announce, None
+    if note is not None:
+        try:
+            note()
+        except Exception:  # a note must never stop a compile
+            pass
 
 
 def compile_seconds() -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import re
 import subprocess
@@ -119,6 +120,27 @@ def test_compile_fills_a_fresh_cache_and_a_second_run_compiles_nothing(tmp_path)
     line = _sparsecast(cache, "render", str(vol), "--index", "naive", "--size", "16x16", "--mode", "iso",
                        "--iso", "0.5", "-o", str(tmp_path / "b.png"))
     assert "wrote" in line and not re.search(r"compile \d+ ms", line), line
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_commands_at_a_terminal_announce_their_first_compile(monkeypatch, capsys, terminal):
+    """A first render compiles for a minute: at a terminal the command says why, once;
+    `sparsecast compile` withdraws the note (its progress bar says so); logs get none."""
+    from sparsecast import kernel_cache
+    cli_app = importlib.import_module("sparsecast.cli.app")  # (sparsecast.cli.app is also the Typer app)
+
+    notes = []
+    monkeypatch.setattr(kernel_cache, "announce_first_compile", notes.append)
+    monkeypatch.setattr(cli_app.err, "_force_terminal", terminal)
+    code, out, err = run_cli(monkeypatch, capsys, "compile", "--list", "--only", "particles")
+    assert code == 0, err
+    if not terminal:
+        assert notes == [None]  # only compile's withdrawal: nothing was installed
+        return
+    note, withdrawn = notes
+    assert withdrawn is None
+    note()
+    assert cli_app.FIRST_COMPILE_NOTE in capsys.readouterr().err
 
 
 def test_lanes_keep_each_dtype_and_group_in_plan_order():

@@ -129,8 +129,17 @@ def cli_message(exc: SparsecastError) -> str:
     return f"{option}: {rest}" if option == "--" + name else f"{option} ({name}): {rest}"
 
 
+#: said once on stderr, at a terminal, when a command starts compiling kernels
+FIRST_COMPILE_NOTE = ("compiling kernels on first use (up to a minute; cached for later runs, and "
+                      "`sparsecast compile` compiles them all ahead)")
+
+
 def main() -> None:
     """Console entry point: bad input becomes one line on stderr and exit status 2."""
+    from ..kernel_cache import announce_first_compile
+
+    if err.is_terminal:  # a minute of silence looks like a hang; a log or a pipe gets no chatter
+        announce_first_compile(lambda: err.print(Text(FIRST_COMPILE_NOTE, style="dim")))
     try:
         app()
     except SparsecastError as exc:

@@ -30,6 +30,8 @@ def compile_command(
     from .. import kernel_cache
     from ..warmup import compile_kernels, plan
 
+    kernel_cache.announce_first_compile(None)  # compiling is what this command is for: its bar says so
+
     names = ("--dtype", "--index", "--only")
     steps = plan(dtype, index, only, names=names)  # bad values: one error before any work
     jobs = _cores() if jobs is None else as_int(jobs, "--jobs", lo=1)
