@@ -23,6 +23,7 @@ import queue
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,7 +32,7 @@ import numpy as np
 from . import kernel_cache
 from ._util.checks import as_int, fail, one_of
 from .camera import Camera
-from .errors import ParameterError
+from .errors import ParameterError, SparsecastError
 from .index import available_indices, build_index, parse_index_spec
 from .index.auto import EDITING_INDEX, SPARSE_INDEX
 from .index.warm import tiny_volume
@@ -339,6 +340,13 @@ def _run_lanes(args: tuple, steps: Sequence[CompileStep], lanes: list[list[int]]
                     progress(finished, len(steps), steps[i].label)
         for f in futures:
             results.update(f.result())
+    except BrokenProcessPool as exc:
+        pool.shutdown(wait=False, cancel_futures=True)
+        # Killed from outside, most likely for memory (each process holds its own Numba
+        # and LLVM): the finished steps' kernels are in the cache, a rerun picks up there.
+        raise SparsecastError(
+            f"jobs: a compile process died before its steps were done ({exc}); out of memory? "
+            f"Run again with fewer jobs (--jobs): kernels compiled so far are cached") from None
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
         raise

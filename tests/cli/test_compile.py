@@ -15,7 +15,7 @@ import pytest
 from cli_runner import run_cli
 from sparsecast import available_indices, kernel_cache
 from sparsecast.index.registry import index_class
-from sparsecast import ParameterError, compile_kernels
+from sparsecast import ParameterError, SparsecastError, compile_kernels
 from sparsecast.warmup import APPROXIMATE_MODES, AUTO_INDICES, DEFAULT_DTYPES, GROUPS, LABEL_INDICES, _lanes, plan
 
 
@@ -156,18 +156,44 @@ def test_lanes_keep_each_dtype_and_group_in_plan_order():
     assert all(" uint8" in steps[i].label for i in lanes[0]) and all(" float32" in steps[i].label for i in lanes[1])
 
 
+#: two lanes of one short step each (brick statistics of two dtypes): the parallel path, cheaply
+_TWO_LANES = dict(dtypes=["uint8", "float32"], indices=[], groups=["volume"])
+
+
 def test_parallel_run_reports_every_step_in_plan_order_with_progress():
     """Two lanes in two spawned processes, on this session's kernel cache."""
     seen = []
-    report = compile_kernels(dtypes=["uint8"], indices=["naive"], groups=["volume", "particles"],
-                             progress=lambda done, total, label: seen.append((done, total, label)), jobs=2)
-    labels = [s.label for s in plan(dtypes=["uint8"], indices=["naive"], groups=["volume", "particles"])]
+    report = compile_kernels(**_TWO_LANES, progress=lambda done, total, label: seen.append((done, total, label)),
+                             jobs=2)
+    labels = [s.label for s in plan(**_TWO_LANES)]
+    assert labels == ["volume uint8: brick statistics", "volume float32: brick statistics"]
     assert report.jobs == 2 and [s[0] for s in report.steps] == labels
     assert all(ms > 0 for _, ms, _ in report.steps)
     assert report.total_ms >= max(ms for _, ms, _ in report.steps) and report.wall_ms > 0
     assert sorted(label for _, _, label in seen[:-1]) == sorted(labels)  # each step, as it started
     assert seen[-1] == (len(labels), len(labels), "")
     assert all(done < len(labels) for done, _, _ in seen[:-1])
+    assert compile_kernels(**_TWO_LANES, jobs=5).jobs == 2  # no more processes than lanes
+
+
+def test_a_compile_process_that_dies_is_one_error():
+    """Killed from outside (the OOM killer, say): one error naming what to do, not a traceback."""
+    import multiprocessing
+    import signal
+
+    killed = []
+
+    def progress(done, total, label):
+        if label and not killed:  # a step has started: its process is busy with it
+            for child in multiprocessing.active_children():
+                os.kill(child.pid, signal.SIGKILL)
+                killed.append(child.pid)
+
+    # Lanes of several steps (a dtype's naive index), so that a lane is still running when
+    # its first step's start comes through; killed at once, they compile next to nothing.
+    with pytest.raises(SparsecastError, match=r"^jobs: a compile process died .* fewer jobs"):
+        compile_kernels(dtypes=["uint8", "float32"], indices=["naive"], groups=["volume"], progress=progress, jobs=2)
+    assert killed
 
 
 def test_jobs_must_be_a_positive_integer():
