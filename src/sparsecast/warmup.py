@@ -319,6 +319,14 @@ def _run_lanes(args: tuple, steps: Sequence[CompileStep], lanes: list[list[int]]
     events = ctx.Queue()
     results: dict[int, tuple[str, float, float]] = {}
     finished = 0
+
+    def report(kind: str, i: int) -> None:
+        nonlocal finished
+        if kind == "done":
+            finished += 1
+        elif progress is not None:
+            progress(finished, len(steps), steps[i].label)
+
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_lane_worker,
                                initargs=(events,))
     try:
@@ -331,15 +339,15 @@ def _run_lanes(args: tuple, steps: Sequence[CompileStep], lanes: list[list[int]]
                     raise f.exception()
             while True:
                 try:
-                    kind, i = events.get_nowait()
+                    report(*events.get_nowait())
                 except queue.Empty:
                     break
-                if kind == "done":
-                    finished += 1
-                elif progress is not None:
-                    progress(finished, len(steps), steps[i].label)
         for f in futures:
             results.update(f.result())
+        # A lane's last events can reach the queue after its result reached the pool (the
+        # queue's feeder thread sends them): wait for them, so every step is reported.
+        while finished < len(steps):
+            report(*events.get(timeout=30))
     except BrokenProcessPool as exc:
         pool.shutdown(wait=False, cancel_futures=True)
         # Killed from outside, most likely for memory (each process holds its own Numba
