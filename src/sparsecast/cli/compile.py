@@ -23,7 +23,7 @@ def compile_command(
     index: Annotated[Optional[list[str]], typer.Option(
         "--index", help="Volume index NAME[:KEY=VALUE,...] (repeatable); default every index and BIH mode.")] = None,
     list_steps: Annotated[bool, typer.Option("--list", help="Print the steps and exit, compiling nothing.")] = False,
-    jobs: Annotated[Optional[int], typer.Option(
+    jobs: Annotated[Optional[str], typer.Option(  # str: a bad value is our one-line error, not click's box
         "--jobs", "-j", help="Processes compiling at once (default: one per core; 1: this one).")] = None,
 ) -> None:
     """Compile the kernels for the common dtypes ahead of use (cached on disk; a second run takes seconds)."""
