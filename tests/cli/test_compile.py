@@ -74,7 +74,7 @@ def test_list_prints_the_plan_without_compiling(monkeypatch, capsys):
     (["--index", "nope"], "--index", "'nope'"),
     (["--index", "grid-pc:cel=8"], "--index", "'cel'"),
     (["--index", "auto"], "--index", "'auto'"),
-    (["--jobs", "0"], "--jobs", "got 0"),
+    (["--jobs", "0"], "--jobs", "got '0'"),
     (["--jobs", "two"], "--jobs", "'two'"),
 ])
 def test_bad_options_are_one_error(monkeypatch, capsys, args, option, found):
