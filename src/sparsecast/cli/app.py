@@ -114,7 +114,8 @@ UpOpt = Annotated[Optional[str], typer.Option(
 #: and names its own parameter ("dt: expected ..."), which a command-line user did not type.
 _OPTION_OF = {"dt": "--dt", "ert": "--ert", "zoom": "--zoom", "background": "--background",
               "azimuth": "--azimuth", "elevation": "--elevation", "projection": "--projection",
-              "threshold": "--threshold", "value_range": "--tf-range", "width": "--size", "height": "--size"}
+              "threshold": "--threshold", "value_range": "--tf-range", "width": "--size", "height": "--size",
+              "brick_size": "--brick-size", "chunks": "--chunks", "clevel": "--clevel"}
 
 
 def cli_message(exc: SparsecastError) -> str:
@@ -126,12 +127,52 @@ def cli_message(exc: SparsecastError) -> str:
     option = _OPTION_OF.get(name) if sep and isinstance(exc, (ParameterError, TransferFunctionError)) else None
     if option is None:
         return text
-    return f"{option}: {rest}" if option == "--" + name else f"{option} ({name}): {rest}"
+    return f"{option}: {rest}" if option == "--" + name.replace("_", "-") else f"{option} ({name}): {rest}"
 
 
 #: said once on stderr, at a terminal, when a command starts compiling kernels
 FIRST_COMPILE_NOTE = ("compiling kernels on first use (up to a minute; cached for later runs, and "
                       "`sparsecast compile` compiles them all ahead)")
+
+
+#: click's UsageError as typer raises it (typer >= 0.20 vendors click as ``typer._click``,
+#: older versions raise click's own): the base of the public ``typer.BadParameter``
+_UsageError = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+
+
+def _typed(args: list[str], opts: list[str]) -> list[str]:
+    """The values given to an option spelt ``opts`` in ``args`` (``--x V`` or ``--x=V``)."""
+    found = []
+    for i, arg in enumerate(args):
+        for opt in opts:
+            if arg == opt and i + 1 < len(args):
+                found.append(args[i + 1])
+            elif arg.startswith(opt + "=") and opt.startswith("--"):
+                found.append(arg[len(opt) + 1:])
+    return found
+
+
+def usage_message(exc: Exception, args: list[str]) -> str:
+    """A command line typer could not parse (a value of the wrong type, an unknown option, a
+    missing argument), as one line: the option, typer's reason, what was typed, where help is.
+
+    typer's own report is a boxed usage block whose reason does not show the value typed
+    ("Input should be a valid integer"); every other bad value gets one ``error:`` line.
+    """
+    text = exc.format_message()
+    param = getattr(exc, "param", None)
+    opts = [o for o in getattr(param, "opts", None) or [] if o.startswith("-")]
+    prefix = f"Invalid value for '{opts[0]}': " if opts else None
+    if prefix and text.startswith(prefix):  # a value that would not convert: name it as typed
+        reason = text[len(prefix):].rstrip(".")
+        typed = _typed(args, opts + [o for o in getattr(param, "secondary_opts", None) or [] if o.startswith("-")])
+        shown = (repr(typed[0]) if len(typed) == 1 else repr(typed)) if typed else None
+        text = f"{opts[0]}: {reason[:1].lower()}{reason[1:]}" + (f", got {shown}" if shown else "")
+    command = getattr(getattr(exc, "ctx", None), "command_path", None)
+    if command is None:  # (an option missing its value comes without a context)
+        known = getattr(typer.main.get_command(app), "commands", {})
+        command = f"sparsecast {args[0]}" if args and args[0] in known else "sparsecast"
+    return f"{text} (see '{command} --help')"
 
 
 def main() -> None:
@@ -141,7 +182,18 @@ def main() -> None:
     if err.is_terminal:  # a minute of silence looks like a hang; a log or a pipe gets no chatter
         announce_first_compile(lambda: err.print(Text(FIRST_COMPILE_NOTE, style="dim")))
     try:
-        app()
+        # not standalone: typer's usage errors come back here as exceptions, for one line
+        status = app(standalone_mode=False)
+    except _UsageError as exc:
+        if type(exc).__name__ == "NoArgsIsHelpError":  # bare `sparsecast`: the help, as typer shows it
+            if exc.format_message().strip():  # (click >= 8.2 unvendored carries the help as its message)
+                out.print(exc.format_message())
+        else:
+            error(usage_message(exc, sys.argv[1:]))
+        sys.exit(2)
+    except typer.Abort:
+        err.print("aborted")
+        sys.exit(1)
     except SparsecastError as exc:
         error(cli_message(exc))
         sys.exit(2)
@@ -151,3 +203,6 @@ def main() -> None:
     except KeyboardInterrupt:
         err.print("interrupted")
         sys.exit(130)
+    # typer.Exit(code) comes back as its code; a command's own return value is no status
+    if isinstance(status, int) and not isinstance(status, bool) and status:
+        sys.exit(status)

@@ -10,7 +10,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from .._util.checks import as_int, fail
+from .._util.checks import as_int, fail, positive_float
 from ..bench.suites import suites_help
 from ..errors import ParameterError
 from .app import app, err, out, plain_console
@@ -64,6 +64,11 @@ def bench(
         as_int(warmup, "--warmup", lo=0)
     if views is not None:
         as_int(views, "--views", lo=1, expected="at least 1 view per axis")
+    if dt is not None:  # (else the first case to render would say so, after loading its volume)
+        positive_float(dt, "--dt", expected="a positive world-space step")
+    for value, option in ((peer_views, "--peer-views"), (dense_views, "--dense-views")):
+        if value is not None:  # (a negative count would slice views off the end)
+            as_int(value, option, lo=0)
     cfg = BenchConfig.from_suite(
         plan, datasets=dataset, methods=method, sizes=sizes, repeat=repeat, warmup=warmup, dt=dt,
         dense_tf=dense, views=orbit_views(views) if views else None, peer_views=peer_views, dense_views=dense_views,
