@@ -48,6 +48,7 @@ def test_bad_input_is_one_clear_line(monkeypatch, capsys, tmp_path, args, names)
         (["--tf-range", "5,1"], "error: --tf-range (value_range): expected finite lo <= hi, got (5.0, 1.0)"),
         (["--size", "100000x100000"], "error: --size (width): expected"),
         (["--background", "1,2"], "error: --background: expected"),
+        (["--mode", "iso", "--iso", "nan"], "error: --iso: expected 1 to 8 finite isovalues"),
     ],
 )
 def test_library_checks_are_named_by_their_option(monkeypatch, capsys, tmp_path, small_volume_file, args, start):

@@ -115,7 +115,8 @@ UpOpt = Annotated[Optional[str], typer.Option(
 _OPTION_OF = {"dt": "--dt", "ert": "--ert", "zoom": "--zoom", "background": "--background",
               "azimuth": "--azimuth", "elevation": "--elevation", "projection": "--projection",
               "threshold": "--threshold", "value_range": "--tf-range", "width": "--size", "height": "--size",
-              "brick_size": "--brick-size", "chunks": "--chunks", "clevel": "--clevel"}
+              "brick_size": "--brick-size", "chunks": "--chunks", "clevel": "--clevel", "iso": "--iso",
+              "radius": "--radius"}
 
 
 def cli_message(exc: SparsecastError) -> str:
