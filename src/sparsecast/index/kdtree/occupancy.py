@@ -40,6 +40,7 @@ from numba import njit, prange
 
 from ...kernels.classify import entry_span, range_is_empty
 from ...kernels.layout import row_offset, voxel_parts
+from ...kernels.parallel import run_chunks
 
 SVT_BRICK = 32
 #: cells per brick edge of the coarse classification pre-pass (Volume.brick_stats)
@@ -47,8 +48,7 @@ CLASSIFY_BRICK = 8
 
 
 # --------------------------------------------------------------------------- classify
-@njit(cache=True, parallel=True)
-def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, apron, occ):
+def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, apron, occ) -> None:
     """Write the occupancy of every cell (see the module docstring) into ``occ``.
 
     ``bricks`` lists the flat numbers of the 8^3 bricks (``CLASSIFY_BRICK``) that
@@ -65,88 +65,92 @@ def classify_cells(data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, nc
     :class:`~sparsecast.kernels.bricked.BrickedVoxels` with those bricks resident
     (storage bricks a multiple of 8 cells, so each 8^3 brick's window lies in one slot).
     """
-    flat, pages, nx, ny, nz, snbx, snby, shift = voxel_parts(data)  # plain arrays: prange takes no records
+    run_chunks(_classify_bricks, bricks.shape[0], 16, data, bricks, bvmin, bvmax, prefix, v_lo, scale,
+               ncz, ncy, ncx, apron, occ)
+
+
+@njit(cache=True, nogil=True)
+def _classify_bricks(first, last, data, bricks, bvmin, bvmax, prefix, v_lo, scale, ncz, ncy, ncx, apron, occ):
+    """:func:`classify_cells` for ``bricks[first:last]``."""
+    flat, pages, nx, ny, nz, snbx, snby, shift = voxel_parts(data)
     B = CLASSIFY_BRICK
     nby = -(-ncy // B)
     nbx = -(-ncx // B)
-    n = bricks.shape[0]
-    chunk = 16
-    for ci in prange((n + chunk - 1) // chunk):
-        mx_lo = np.empty((B + 3, B + 3, B), np.float64)
-        mx_hi = np.empty((B + 3, B + 3, B), np.float64)
-        my_lo = np.empty((B + 3, B, B), np.float64)
-        my_hi = np.empty((B + 3, B, B), np.float64)
-        for bi in range(ci * chunk, min(ci * chunk + chunk, n)):
-            fb = bricks[bi]
-            bz = fb // (nby * nbx)
-            rem = fb - bz * nby * nbx
-            by = rem // nbx
-            bx = rem - by * nbx
-            cz0 = bz * B
-            cy0 = by * B
-            cx0 = bx * B
-            cz1 = min(cz0 + B, ncz)
-            cy1 = min(cy0 + B, ncy)
-            cx1 = min(cx0 + B, ncx)
-            first, last = entry_span(v_lo, scale, prefix.shape[0] - 1, bvmin[bi], bvmax[bi])
-            if prefix[last + 1] - prefix[first] == last - first + 1:
-                for z in range(cz1 - cz0):
-                    for y in range(cy1 - cy0):
-                        for x in range(cx1 - cx0):
-                            occ[bi, z, y, x] = 1
-                continue
-            wz0 = max(cz0 - apron, 0)
-            wy0 = max(cy0 - apron, 0)
-            wz1 = min(cz1 + apron, nz - 1)
-            wy1 = min(cy1 + apron, ny - 1)
-            lz = wz1 - wz0 + 1
-            ly = wy1 - wy0 + 1
-            for zz in range(lz):
-                for yy in range(ly):
-                    # The row of voxels, from the dense array or the brick's slot
-                    # (the window lies in the slot of the storage brick of cell (cz0, cy0, cx0)).
-                    base = row_offset(pages, shift, snbx, snby, nx, ny, cz0, cy0, cx0, wz0 + zz, wy0 + yy)
-                    for cx in range(cx0, cx1):
-                        i0 = max(cx - apron, 0)
-                        i1 = min(cx + 1 + apron, nx - 1)
-                        lo = np.float64(flat[base + i0])
-                        hi = lo
-                        for i in range(i0 + 1, i1 + 1):
-                            v = np.float64(flat[base + i])
-                            if v < lo:
-                                lo = v
-                            if v > hi:
-                                hi = v
-                        mx_lo[zz, yy, cx - cx0] = lo
-                        mx_hi[zz, yy, cx - cx0] = hi
-            for zz in range(lz):
-                for cy in range(cy0, cy1):
-                    j0 = max(cy - apron, 0) - wy0
-                    j1 = min(cy + 1 + apron, ny - 1) - wy0
-                    for xx in range(cx1 - cx0):
-                        lo = mx_lo[zz, j0, xx]
-                        hi = mx_hi[zz, j0, xx]
-                        for j in range(j0 + 1, j1 + 1):
-                            if mx_lo[zz, j, xx] < lo:
-                                lo = mx_lo[zz, j, xx]
-                            if mx_hi[zz, j, xx] > hi:
-                                hi = mx_hi[zz, j, xx]
-                        my_lo[zz, cy - cy0, xx] = lo
-                        my_hi[zz, cy - cy0, xx] = hi
-            for cz in range(cz0, cz1):
-                k0 = max(cz - apron, 0) - wz0
-                k1 = min(cz + 1 + apron, nz - 1) - wz0
-                for yy in range(cy1 - cy0):
-                    for xx in range(cx1 - cx0):
-                        lo = my_lo[k0, yy, xx]
-                        hi = my_hi[k0, yy, xx]
-                        for k in range(k0 + 1, k1 + 1):
-                            if my_lo[k, yy, xx] < lo:
-                                lo = my_lo[k, yy, xx]
-                            if my_hi[k, yy, xx] > hi:
-                                hi = my_hi[k, yy, xx]
-                        if not range_is_empty(prefix, v_lo, scale, lo, hi):
-                            occ[bi, cz - cz0, yy, xx] = 1
+    mx_lo = np.empty((B + 3, B + 3, B), np.float64)
+    mx_hi = np.empty((B + 3, B + 3, B), np.float64)
+    my_lo = np.empty((B + 3, B, B), np.float64)
+    my_hi = np.empty((B + 3, B, B), np.float64)
+    for bi in range(first, last):
+        fb = bricks[bi]
+        bz = fb // (nby * nbx)
+        rem = fb - bz * nby * nbx
+        by = rem // nbx
+        bx = rem - by * nbx
+        cz0 = bz * B
+        cy0 = by * B
+        cx0 = bx * B
+        cz1 = min(cz0 + B, ncz)
+        cy1 = min(cy0 + B, ncy)
+        cx1 = min(cx0 + B, ncx)
+        first, last = entry_span(v_lo, scale, prefix.shape[0] - 1, bvmin[bi], bvmax[bi])
+        if prefix[last + 1] - prefix[first] == last - first + 1:
+            for z in range(cz1 - cz0):
+                for y in range(cy1 - cy0):
+                    for x in range(cx1 - cx0):
+                        occ[bi, z, y, x] = 1
+            continue
+        wz0 = max(cz0 - apron, 0)
+        wy0 = max(cy0 - apron, 0)
+        wz1 = min(cz1 + apron, nz - 1)
+        wy1 = min(cy1 + apron, ny - 1)
+        lz = wz1 - wz0 + 1
+        ly = wy1 - wy0 + 1
+        for zz in range(lz):
+            for yy in range(ly):
+                # The row of voxels, from the dense array or the brick's slot
+                # (the window lies in the slot of the storage brick of cell (cz0, cy0, cx0)).
+                base = row_offset(pages, shift, snbx, snby, nx, ny, cz0, cy0, cx0, wz0 + zz, wy0 + yy)
+                for cx in range(cx0, cx1):
+                    i0 = max(cx - apron, 0)
+                    i1 = min(cx + 1 + apron, nx - 1)
+                    lo = np.float64(flat[base + i0])
+                    hi = lo
+                    for i in range(i0 + 1, i1 + 1):
+                        v = np.float64(flat[base + i])
+                        if v < lo:
+                            lo = v
+                        if v > hi:
+                            hi = v
+                    mx_lo[zz, yy, cx - cx0] = lo
+                    mx_hi[zz, yy, cx - cx0] = hi
+        for zz in range(lz):
+            for cy in range(cy0, cy1):
+                j0 = max(cy - apron, 0) - wy0
+                j1 = min(cy + 1 + apron, ny - 1) - wy0
+                for xx in range(cx1 - cx0):
+                    lo = mx_lo[zz, j0, xx]
+                    hi = mx_hi[zz, j0, xx]
+                    for j in range(j0 + 1, j1 + 1):
+                        if mx_lo[zz, j, xx] < lo:
+                            lo = mx_lo[zz, j, xx]
+                        if mx_hi[zz, j, xx] > hi:
+                            hi = mx_hi[zz, j, xx]
+                    my_lo[zz, cy - cy0, xx] = lo
+                    my_hi[zz, cy - cy0, xx] = hi
+        for cz in range(cz0, cz1):
+            k0 = max(cz - apron, 0) - wz0
+            k1 = min(cz + 1 + apron, nz - 1) - wz0
+            for yy in range(cy1 - cy0):
+                for xx in range(cx1 - cx0):
+                    lo = my_lo[k0, yy, xx]
+                    hi = my_hi[k0, yy, xx]
+                    for k in range(k0 + 1, k1 + 1):
+                        if my_lo[k, yy, xx] < lo:
+                            lo = my_lo[k, yy, xx]
+                        if my_hi[k, yy, xx] > hi:
+                            hi = my_hi[k, yy, xx]
+                    if not range_is_empty(prefix, v_lo, scale, lo, hi):
+                        occ[bi, cz - cz0, yy, xx] = 1
 
 
 # --------------------------------------------------------------------------- SVTs
@@ -159,18 +163,23 @@ def _occ_at(bmap, occ, z, y, x):
     return occ[b, z & 7, y & 7, x & 7]
 
 
-@njit(cache=True, parallel=True)
-def brick_counts(bmap, occ, ncz, ncy, ncx, bcount, bbox):
+def brick_counts(bmap, occ, ncz, ncy, ncx, bcount, bbox) -> None:
     """Per 32^3 brick: occupied count and tight box (empty bricks: count 0).
 
     Cells live in per-8^3-brick arrays (``occ[bmap[z>>3, y>>3, x>>3]]``); 8^3
     bricks without a row are empty and not visited.
     """
+    run_chunks(_brick_counts, bcount.size, 8, bmap, occ, ncz, ncy, ncx, bcount, bbox)
+
+
+@njit(cache=True, nogil=True)
+def _brick_counts(first, last, bmap, occ, ncz, ncy, ncx, bcount, bbox):
+    """:func:`brick_counts` for the 32^3 bricks ``first .. last - 1`` (flat, C order)."""
     nbz, nby, nbx = bcount.shape
     S = SVT_BRICK
     F = S // CLASSIFY_BRICK
     B = CLASSIFY_BRICK
-    for flat in prange(nbz * nby * nbx):
+    for flat in range(first, last):
         bz = flat // (nby * nbx)
         rem = flat - bz * nby * nbx
         by = rem // nbx
@@ -213,12 +222,17 @@ def brick_counts(bmap, occ, ncz, ncy, ncx, bcount, bbox):
         bbox[bz, by, bx, 5] = hz
 
 
-@njit(cache=True, parallel=True)
-def build_svts(bmap, occ, bslot, svt):
+def build_svts(bmap, occ, bslot, svt) -> None:
     """Fill the partial SVT of every non-empty 32^3 brick (parallel over bricks)."""
+    run_chunks(_build_svts, bslot.size, 8, bmap, occ, bslot, svt)
+
+
+@njit(cache=True, nogil=True)
+def _build_svts(first, last, bmap, occ, bslot, svt):
+    """:func:`build_svts` for the 32^3 bricks ``first .. last - 1`` (flat, C order)."""
     nbz, nby, nbx = bslot.shape
     S = SVT_BRICK
-    for flat in prange(nbz * nby * nbx):
+    for flat in range(first, last):
         bz = flat // (nby * nbx)
         rem = flat - bz * nby * nbx
         by = rem // nbx
