@@ -1,4 +1,6 @@
-"""Atlas rasterization kernels (Numba, parallel over tiles; each tile owns its texels).
+"""Atlas rasterization kernels (Numba, parallel over tiles; each tile owns its texels:
+plain ``nogil`` kernels over a range of tiles, spread over threads by
+:func:`~sparsecast.kernels.parallel.run_chunks`).
 
 Conventions as in :mod:`._rbvh_kernels`: texel ``(i, j)`` of tile ``k`` sits at
 texel coordinates ``(s, t) = (i, j)`` and is stored in the pool at
@@ -12,8 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..kernels.parallel import run_chunks
 from ._rbvh_kernels import EMPTY, EMPTY_TEST
 
 #: barycentric slack so texels exactly on a shared edge are covered by both triangles
@@ -27,7 +30,6 @@ def _to_tile(P, x, y, z):
             rx * P[9] + ry * P[10] + rz * P[11])
 
 
-@njit(cache=True, parallel=True)
 def rasterize_triangles(tile_proj, tile_texels, tile_start, tile_count, refs, tris, faces, vnormals,
                         depth, normal):
     """Depth (max height) and interpolated vertex normal of each tile's triangles.
@@ -42,7 +44,14 @@ def rasterize_triangles(tile_proj, tile_texels, tile_start, tile_count, refs, tr
     border. Texels with their centre inside some triangle always win over
     extrapolated ones; among extrapolations the least-outside triangle wins.
     """
-    for k in prange(tile_proj.shape[0]):
+    run_chunks(_rasterize_triangles, tile_proj.shape[0], None, tile_proj, tile_texels, tile_start, tile_count,
+               refs, tris, faces, vnormals, depth, normal)
+
+
+@njit(cache=True, nogil=True)
+def _rasterize_triangles(first, last, tile_proj, tile_texels, tile_start, tile_count, refs, tris, faces,
+                         vnormals, depth, normal):
+    for k in range(first, last):
         P = tile_proj[k]
         o, r = tile_texels[k, 0], tile_texels[k, 1]
         # > 0 inside some triangle; <= 0: how far outside the writer's triangle was
@@ -94,14 +103,20 @@ def rasterize_triangles(tile_proj, tile_texels, tile_start, tile_count, refs, tr
                                                      + b2 * vnormals[v2, c])
 
 
-@njit(cache=True, parallel=True)
 def splat_points(tile_proj, tile_texels, tile_steps, tile_start, tile_count, refs, points, pnormals, radii,
                  depth, normal):
     """Oriented discs: every texel whose column meets a disc gets the disc's height there.
 
     ``tile_steps[k]`` is the world size of a texel along ``U`` and ``V``.
     """
-    for k in prange(tile_proj.shape[0]):
+    run_chunks(_splat_points, tile_proj.shape[0], None, tile_proj, tile_texels, tile_steps, tile_start, tile_count,
+               refs, points, pnormals, radii, depth, normal)
+
+
+@njit(cache=True, nogil=True)
+def _splat_points(first, last, tile_proj, tile_texels, tile_steps, tile_start, tile_count, refs, points, pnormals,
+                  radii, depth, normal):
+    for k in range(first, last):
         P = tile_proj[k]
         o, r = tile_texels[k, 0], tile_texels[k, 1]
         du, dv = tile_steps[k, 0], tile_steps[k, 1]
@@ -134,7 +149,6 @@ def splat_points(tile_proj, tile_texels, tile_steps, tile_start, tile_count, ref
                         normal[o + j * r + i, 2] = pnormals[p, 2]
 
 
-@njit(cache=True, parallel=True)
 def dilate(tile_texels, tile_steps, depth, normal, passes, max_slope):
     """Grow every tile's surface by ``passes`` texels into empty texels.
 
@@ -145,7 +159,12 @@ def dilate(tile_texels, tile_steps, depth, normal, passes, max_slope):
     neighbours' mean. The border keeps adjacent tiles overlapping, so rays
     through a seam find a surface (no cracks).
     """
-    for k in prange(tile_texels.shape[0]):
+    run_chunks(_dilate, tile_texels.shape[0], None, tile_texels, tile_steps, depth, normal, passes, max_slope)
+
+
+@njit(cache=True, nogil=True)
+def _dilate(first, last, tile_texels, tile_steps, depth, normal, passes, max_slope):
+    for k in range(first, last):
         o, r = tile_texels[k, 0], tile_texels[k, 1]
         step = min(tile_steps[k, 0], tile_steps[k, 1])
         for _ in range(passes):
@@ -182,11 +201,16 @@ def dilate(tile_texels, tile_steps, depth, normal, passes, max_slope):
                         normal[o + j * r + i, 2] = nz / cnt
 
 
-@njit(cache=True, parallel=True)
 def tile_height_range(tile_texels, depth, pad):
     """``(min, max)`` valid height per tile, widened by ``pad`` (tiles may be empty: (0, -1))."""
     out = np.empty((tile_texels.shape[0], 2), np.float32)
-    for k in prange(tile_texels.shape[0]):
+    run_chunks(_tile_height_range, tile_texels.shape[0], None, tile_texels, depth, pad, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _tile_height_range(first, last, tile_texels, depth, pad, out):
+    for k in range(first, last):
         o, r = tile_texels[k, 0], tile_texels[k, 1]
         lo, hi = np.inf, -np.inf
         for j in range(r):
@@ -199,12 +223,8 @@ def tile_height_range(tile_texels, depth, pad):
             out[k, 0], out[k, 1] = 0.0, -1.0
         else:
             out[k, 0], out[k, 1] = lo - pad[k], hi + pad[k]
-    return out
 
 
-
-
-@njit(cache=True, parallel=True)
 def triangle_tile_extents(frames, tile_start, tile_count, refs, tris):
     """Per tile: bounds of its triangles in the tile frame ``(u, v, w)`` and in world space.
 
@@ -215,7 +235,13 @@ def triangle_tile_extents(frames, tile_start, tile_count, refs, tris):
     hi = np.full((n, 3), -np.inf)
     wlo = np.full((n, 3), np.inf)
     whi = np.full((n, 3), -np.inf)
-    for k in prange(n):
+    run_chunks(_triangle_tile_extents, n, None, frames, tile_start, tile_count, refs, tris, lo, hi, wlo, whi)
+    return lo, hi, wlo, whi
+
+
+@njit(cache=True, nogil=True)
+def _triangle_tile_extents(first, last, frames, tile_start, tile_count, refs, tris, lo, hi, wlo, whi):
+    for k in range(first, last):
         for q in range(tile_start[k], tile_start[k] + tile_count[k]):
             f = refs[q]
             for c in range(3):
@@ -227,7 +253,6 @@ def triangle_tile_extents(frames, tile_start, tile_count, refs, tris):
                 wlo[k, 0], whi[k, 0] = min(wlo[k, 0], x), max(whi[k, 0], x)
                 wlo[k, 1], whi[k, 1] = min(wlo[k, 1], y), max(whi[k, 1], y)
                 wlo[k, 2], whi[k, 2] = min(wlo[k, 2], z), max(whi[k, 2], z)
-    return lo, hi, wlo, whi
 
 
 __all__ = ["rasterize_triangles", "splat_points", "dilate", "tile_height_range", "triangle_tile_extents", "EMPTY"]
