@@ -20,10 +20,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.camera import primary_ray
+from ..kernels.parallel import run_chunks
 from ..kernels.tiles import tile_bounds, tile_count
 from ._bvh_kernels import TILE_LEAF, hit_normal, intersect_triangle, mip_tile
 from ._rbvh_wide_build_kernels import WIDTH
@@ -186,34 +187,53 @@ def _primary_tile(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, a
             out_uv[py, px, 0], out_uv[py, px, 1] = a, b
 
 
-@njit(cache=True, parallel=True)
 def cast_rays_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                         atlas_depth, atlas_normal, root, origins, dirs, t_min, t_max, n_stack, fp0, spread,
-                        n_levels, out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`.
+                        n_levels, out_t, out_n, out_face, out_tile, out_uv) -> None:
+    """Closest hits of a batch of rays (unit directions), in chunks of :data:`RAY_CHUNK`
+    spread over threads (:func:`~sparsecast.kernels.parallel.run_chunks`).
 
     ``fp0 + spread * t`` is the rays' footprint for mip selection (0, 0: finest).
     """
+    run_chunks(_ray_chunks, -(-origins.shape[0] // RAY_CHUNK), None, box, child, tris, tri_face, faces, vnormals,
+               tiles, tiles_i, atlas_depth, atlas_normal, root, origins, dirs, t_min, t_max, n_stack, fp0, spread,
+               n_levels, out_t, out_n, out_face, out_tile, out_uv)
+
+
+@njit(cache=True, nogil=True)
+def _ray_chunks(first, last, box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth,
+                atlas_normal, root, origins, dirs, t_min, t_max, n_stack, fp0, spread, n_levels,
+                out_t, out_n, out_face, out_tile, out_uv):
+    """Chunks ``first .. last - 1`` of :func:`cast_rays_rbvh_wide`, with one traversal stack."""
     n = origins.shape[0]
-    n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
-    for ck in prange(n_chunks):
+    st_node, st_t, lane_b = np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32)
+    for c in range(first, last):
         _rays_chunk(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
-                    origins, dirs, t_min, t_max, np.int64(ck) * RAY_CHUNK, min(n, (np.int64(ck) + 1) * RAY_CHUNK),
-                    np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32),
-                    fp0, spread, n_levels, out_t, out_n, out_face, out_tile, out_uv)
+                    origins, dirs, t_min, t_max, c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK),
+                    st_node, st_t, lane_b, fp0, spread, n_levels, out_t, out_n, out_face, out_tile, out_uv)
 
 
-@njit(cache=True, parallel=True)
 def cast_primary_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i,
                            atlas_depth, atlas_normal, root, params, width, height, n_stack, n_levels,
-                           out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
-    :func:`._bvh_kernels.cast_primary`)."""
+                           out_t, out_n, out_face, out_tile, out_uv) -> None:
+    """Closest hits of the camera's primary rays, pixel tiles spread over threads (outputs
+    as :func:`._bvh_kernels.cast_primary`)."""
     # A pixel's footprint: its angle times the distance (perspective) or its fixed width (orthographic).
     pixel = 2.0 * math.sqrt(params[9] * params[9] + params[10] * params[10] + params[11] * params[11]) / height
     fp0 = 0.0 if params[12] != 0.0 else pixel
     spread = pixel if params[12] != 0.0 else 0.0
-    for tile in prange(tile_count(width, height)):
+    run_chunks(_primary_tiles, int(tile_count(width, height)), None, box, child, tris, tri_face, faces, vnormals,
+               tiles, tiles_i, atlas_depth, atlas_normal, root, params, width, height, n_stack, float(fp0),
+               float(spread), n_levels, out_t, out_n, out_face, out_tile, out_uv)
+
+
+@njit(cache=True, nogil=True)
+def _primary_tiles(first, last, box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth,
+                   atlas_normal, root, params, width, height, n_stack, fp0, spread, n_levels,
+                   out_t, out_n, out_face, out_tile, out_uv):
+    """Pixel tiles ``first .. last - 1`` of :func:`cast_primary_rbvh_wide`, with one traversal stack."""
+    st_node, st_t, lane_b = np.empty(n_stack, np.int32), np.empty(n_stack), np.empty(WIDTH, np.float32)
+    for tile in range(first, last):
         _primary_tile(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
-                      params, width, height, np.int64(tile), np.empty(n_stack, np.int32), np.empty(n_stack),
-                      np.empty(WIDTH, np.float32), fp0, spread, n_levels, out_t, out_n, out_face, out_tile, out_uv)
+                      params, width, height, tile, st_node, st_t, lane_b, fp0, spread, n_levels,
+                      out_t, out_n, out_face, out_tile, out_uv)

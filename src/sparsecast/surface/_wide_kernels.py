@@ -39,10 +39,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..kernels.borrow import NO_REFCOUNT
 from ..kernels.camera import primary_ray
+from ..kernels.parallel import run_chunks
 from ..kernels.simd import slab4, woop4
 from ..kernels.tiles import tile_bounds, tile_count
 from ._wide_build_kernels import LEAF_SHIFT
@@ -340,13 +341,12 @@ def closest_hit_wide(box, child, tri4, face4, faces, vnormals, root, ox, oy, oz,
     return best, nx, ny, nz, face, -1, ha, hb
 
 
-# The drivers below are Numba parallel loops whose body is one call: a chunk of rays
-# (or a tile of pixels) traced by a plain kernel with the traversal inlined into it.
-# Inlined into the prange body itself, the traversal went through Numba's parfor
-# passes and the parallel gufunc's compile with it: 20-26 s a driver cold, 11-12 s now,
-# the chunk kernel's own compile included (one call per 64 rays costs nothing measurable).
-# The index is passed as np.int64: the parfor types it uint64, and a uint64 argument
-# compiled the chunk kernel a second time.
+# The drivers below spread pieces of chunks of rays (or of pixel tiles) over threads
+# (kernels.parallel.run_chunks); a chunk or a tile is traced by a plain kernel with the
+# traversal inlined into it. Inlined into a prange body instead, the traversal went
+# through Numba's parfor passes and the parallel gufunc's compile with it: 20-26 s a
+# driver cold; a prange loop of one call per chunk took 11-12 s; without prange, the
+# parfor's 2-3 s go too (one call per 64 rays costs nothing measurable).
 @njit(cache=True, **NO_REFCOUNT)
 def _rays_chunk(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, r0, r1,
                 st_node, st_t, lane_b, lane_t, out_t, out_n, out_face, out_tile, out_uv):
@@ -379,25 +379,41 @@ def _primary_tile(box, child, tri4, face4, faces, vnormals, root, params, width,
             out_uv[py, px, 0], out_uv[py, px, 1] = a, b
 
 
-@njit(cache=True, parallel=True)
 def cast_rays_wide(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max, n_stack,
-                   out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of a batch of rays (unit directions), in parallel chunks of :data:`RAY_CHUNK`."""
+                   out_t, out_n, out_face, out_tile, out_uv) -> None:
+    """Closest hits of a batch of rays (unit directions), in chunks of :data:`RAY_CHUNK`
+    spread over threads (:func:`~sparsecast.kernels.parallel.run_chunks`)."""
+    run_chunks(_ray_chunks, -(-origins.shape[0] // RAY_CHUNK), None, box, child, tri4, face4, faces, vnormals,
+               root, origins, dirs, t_min, t_max, n_stack, out_t, out_n, out_face, out_tile, out_uv)
+
+
+@njit(cache=True, nogil=True)
+def _ray_chunks(first, last, box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max,
+                n_stack, out_t, out_n, out_face, out_tile, out_uv):
+    """Chunks ``first .. last - 1`` of :func:`cast_rays_wide`, with one traversal stack."""
     n = origins.shape[0]
-    n_chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
-    for c in prange(n_chunks):
+    st_node, st_t = np.empty(n_stack, np.int32), np.empty(n_stack, np.float32)
+    lane_b, lane_t = np.empty(4, np.float32), np.empty(8)
+    for c in range(first, last):
         _rays_chunk(box, child, tri4, face4, faces, vnormals, root, origins, dirs, t_min, t_max,
-                    np.int64(c) * RAY_CHUNK, min(n, (np.int64(c) + 1) * RAY_CHUNK), np.empty(n_stack, np.int32),
-                    np.empty(n_stack, np.float32), np.empty(4, np.float32), np.empty(8),
+                    c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK), st_node, st_t, lane_b, lane_t,
                     out_t, out_n, out_face, out_tile, out_uv)
 
 
-@njit(cache=True, parallel=True)
 def cast_primary_wide(box, child, tri4, face4, faces, vnormals, root, params, width, height, n_stack,
-                      out_t, out_n, out_face, out_tile, out_uv):
-    """Closest hits of the camera's primary rays, parallel over pixel tiles (outputs as
-    :func:`._bvh_kernels.cast_primary`)."""
-    for tile in prange(tile_count(width, height)):
-        _primary_tile(box, child, tri4, face4, faces, vnormals, root, params, width, height, np.int64(tile),
-                      np.empty(n_stack, np.int32), np.empty(n_stack, np.float32), np.empty(4, np.float32),
-                      np.empty(8), out_t, out_n, out_face, out_tile, out_uv)
+                      out_t, out_n, out_face, out_tile, out_uv) -> None:
+    """Closest hits of the camera's primary rays, pixel tiles spread over threads (outputs
+    as :func:`._bvh_kernels.cast_primary`)."""
+    run_chunks(_primary_tiles, int(tile_count(width, height)), None, box, child, tri4, face4, faces, vnormals,
+               root, params, width, height, n_stack, out_t, out_n, out_face, out_tile, out_uv)
+
+
+@njit(cache=True, nogil=True)
+def _primary_tiles(first, last, box, child, tri4, face4, faces, vnormals, root, params, width, height, n_stack,
+                   out_t, out_n, out_face, out_tile, out_uv):
+    """Pixel tiles ``first .. last - 1`` of :func:`cast_primary_wide`, with one traversal stack."""
+    st_node, st_t = np.empty(n_stack, np.int32), np.empty(n_stack, np.float32)
+    lane_b, lane_t = np.empty(4, np.float32), np.empty(8)
+    for tile in range(first, last):
+        _primary_tile(box, child, tri4, face4, faces, vnormals, root, params, width, height, tile,
+                      st_node, st_t, lane_b, lane_t, out_t, out_n, out_face, out_tile, out_uv)
