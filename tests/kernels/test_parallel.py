@@ -124,3 +124,28 @@ def test_a_kernel_error_reaches_the_caller():
             run_chunks(kernel, 16, 4)
     finally:
         numba.set_num_threads(before)
+
+
+def test_an_interrupted_caller_stops_the_helpers():
+    """Ctrl-C in the caller's piece: the helpers finish the piece they are in and take no more."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core")
+    import time
+
+    caller = threading.get_ident()
+    helper_pieces = []
+
+    def kernel(first, last):
+        if threading.get_ident() == caller:
+            raise KeyboardInterrupt
+        helper_pieces.append(first)
+        time.sleep(0.005)  # (releases the GIL, as a nogil kernel does)
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_chunks(kernel, 200, 1)
+    finally:
+        numba.set_num_threads(before)
+    assert len(helper_pieces) < 20  # without the stop, the helper takes all the other 199

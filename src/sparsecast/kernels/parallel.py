@@ -103,7 +103,8 @@ def run_chunks(kernel: Callable, n: int, grain: int | None, *args) -> None:
     per piece. The calling thread takes pieces too, and helper threads take the next
     free piece when they get to run, so a busy pool (another caller's pieces) slows a
     call down but never blocks it: a helper that starts after the last piece is taken
-    finds nothing to do, and one that has not started is cancelled.
+    finds nothing to do, and one that has not started is cancelled. A KeyboardInterrupt
+    (or an error) in the caller's piece stops the helpers after their current piece.
 
     Parameters
     ----------
@@ -126,17 +127,21 @@ def run_chunks(kernel: Callable, n: int, grain: int | None, *args) -> None:
         kernel(0, n, *args)
         return
     taken = itertools.count()  # next() is atomic under the GIL: each piece is taken once
+    stop = []  # set when the caller gives up (Ctrl-C, a piece's error): no new pieces
 
     def work() -> None:
         for i in iter(taken.__next__, None):
-            if i >= pieces:
+            if i >= pieces or stop:
                 return
             kernel(i * grain, min(n, (i + 1) * grain), *args)
 
     helpers = [_helpers().submit(work) for _ in range(threads - 1)]
     try:
         work()
+    except BaseException:
+        stop.append(True)
+        raise
     finally:
         for f in helpers:
             if not f.cancel():
-                f.result()  # wait for its piece; re-raise its exception
+                f.result()  # wait for its piece (the outputs stay the caller's); re-raise its exception
