@@ -17,7 +17,7 @@ import math
 import time
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .._util.checks import as_float, positive_float
 from ..camera import Camera
@@ -27,7 +27,7 @@ from ..image import Image
 from ..index.bih import ParticleBIH
 from ..index.bih.traversal import next_leaf, push_root, set_ray, traversal_arrays
 from ..kernels.camera import primary_ray
-from ..kernels.parallel import parallel_section
+from ..kernels.parallel import run_chunks
 from ..kernels.shade import write_pixel
 from ..kernels.tiles import tile_bounds, tile_count
 from .colormap import map_values
@@ -113,10 +113,18 @@ def particle_tile(tile, nodes, preorder, frame_lo, frame_step, root_box, depth, 
             out_tests[py, px] = tests
 
 
-@njit(cache=True, parallel=True)
 def particle_kernel(nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
                     radius_scale, grow, kappa, opacity, cam, width, height, ert, background, out_rgba, out_tests):
-    for tile in prange(tile_count(width, height)):
+    """Every pixel tile of the frame, spread over threads (:func:`~sparsecast.kernels.parallel.run_chunks`)."""
+    run_chunks(_particle_tiles, int(tile_count(width, height)), None, nodes, preorder, frame_lo, frame_step,
+               root_box, depth, centers, radii, colors, radius_scale, grow, kappa, opacity, cam, width, height, ert,
+               background, out_rgba, out_tests)
+
+
+@njit(cache=True, nogil=True)
+def _particle_tiles(first, last, nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
+                    radius_scale, grow, kappa, opacity, cam, width, height, ert, background, out_rgba, out_tests):
+    for tile in range(first, last):
         particle_tile(tile, nodes, preorder, frame_lo, frame_step, root_box, depth, centers, radii, colors,
                       radius_scale, grow, kappa, opacity, cam, width, height, ert, background, out_rgba, out_tests)
 
@@ -205,12 +213,11 @@ def render_particles(
             particles.radii, colors, scale, grow, float(kappa), float(opacity))
     bg = background_array(background)
     t0 = time.perf_counter()
-    with parallel_section():  # a prange kernel (see kernels.parallel)
-        particle_kernel(*args, camera.ray_params(1, 1), 1, 1, float(ert), bg, np.empty((1, 1, 4), np.float32),
-                        np.empty((1, 1), np.int32))  # compile / load outside the timing
-        t1 = time.perf_counter()
-        particle_kernel(*args, camera.ray_params(width, height), width, height, float(ert), bg, rgba, tests)
-        ms = (time.perf_counter() - t1) * 1e3
+    particle_kernel(*args, camera.ray_params(1, 1), 1, 1, float(ert), bg, np.empty((1, 1, 4), np.float32),
+                    np.empty((1, 1), np.int32))  # compile / load outside the timing
+    t1 = time.perf_counter()
+    particle_kernel(*args, camera.ray_params(width, height), width, height, float(ert), bg, rgba, tests)
+    ms = (time.perf_counter() - t1) * 1e3
     stats = {"ms": ms, "jit_ms": build_jit_ms + (t1 - t0) * 1e3, "build_ms": build_ms, "rays": width * height,
              "sphere_tests": int(tests.sum(dtype=np.int64)), "particles": len(particles.radii),
              "radius_scale": scale, "kappa": float(kappa), "opacity": float(opacity),
