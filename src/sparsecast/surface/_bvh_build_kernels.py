@@ -127,14 +127,18 @@ def build_range(box, ids, bounds, first, count, root, s_root, e_root, root_box, 
     right_cnt = np.empty(n_bins, np.int32)
     nbx = np.empty(NODE_BOX, np.float32)  # the node being split (its stack slot is reused)
     st_node[0], st_s[0], st_e[0], st_d[0] = root, s_root, e_root, depth0
-    st_box[0, :] = root_box
+    # Element loops rather than slice assignments: a slice assignment compiles Numba's
+    # shape-mismatch message with it (string formatting, 2.7 s of a cold build).
+    for a in range(NODE_BOX):
+        st_box[0, a] = root_box[a]
     sp = 1
     max_depth = depth0
     n_tasks = 0
     while sp > 0:
         sp -= 1
         node, s, e, d = st_node[sp], st_s[sp], st_e[sp], st_d[sp]
-        nbx[:] = st_box[sp]
+        for a in range(NODE_BOX):
+            nbx[a] = st_box[sp, a]
         max_depth = max(max_depth, d)
         for a in range(3):
             bounds[node, 0, a] = nbx[a]
@@ -146,7 +150,8 @@ def build_range(box, ids, bounds, first, count, root, s_root, e_root, root_box, 
             continue
         if stop >= 0 and n <= stop and node != root:
             task_node[n_tasks], task_s[n_tasks], task_e[n_tasks], task_depth[n_tasks] = node, s, e, d
-            task_box[n_tasks, :] = nbx
+            for a in range(NODE_BOX):
+                task_box[n_tasks, a] = nbx[a]
             n_tasks += 1
             continue
         # Bin the centroids along every axis with a non-zero extent; small nodes

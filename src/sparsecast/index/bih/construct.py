@@ -42,9 +42,20 @@ _TASK_I = 5
 
 @njit(cache=True)
 def _grow2(a, n):
+    """``a`` (C-contiguous) in a new array of ``n`` rows, the rows past ``a``'s unset."""
     out = np.empty((n,) + a.shape[1:], a.dtype)
-    out[: a.shape[0]] = a
+    # Element loops rather than slice assignments here and below: a slice assignment
+    # compiles Numba's shape-mismatch message with it (string formatting, 4 s of a cold
+    # build for a message a correct copy never shows).
+    _copy(a.ravel(), out.ravel())
     return out
+
+
+@njit(cache=True)
+def _copy(src, dst):
+    """``dst[:len(src)] = src`` for 1-D arrays, without the shape check (see :func:`_grow2`)."""
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
 
 
 @njit(cache=True)
@@ -196,7 +207,7 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
     for a in range(6):
         cur[_S + a] = cur[_A + a]
         cur[_T + a] = cur[_A + a]
-    tf[0] = cur
+    _copy(cur, tf[0])
     ti[0, 0] = 0
     ti[0, 1] = n
     ti[0, 2] = -1
@@ -205,7 +216,7 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
     hs = 1
     while hs > 0:
         hs -= 1
-        cur[:] = tf[hs]
+        _copy(tf[hs], cur)
         b = ti[hs, 0]
         e = ti[hs, 1]
         parent = ti[hs, 2]
@@ -309,7 +320,7 @@ def build(lo, hi, variant, node_i, node_f, node_box, perm):
             # Right task first: the left child is popped next (pre-order).
             for side in range(2):
                 t = hs + side
-                tf[t] = cur
+                _copy(cur, tf[t])
                 src = rb if side == 0 else lb
                 for a in range(6):
                     tf[t, _A + a] = src[a]
