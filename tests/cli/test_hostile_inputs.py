@@ -45,7 +45,7 @@ def test_full_width_digits_and_orphan_raw_options(monkeypatch, capsys):
     assert parse_size("32x16") == (32, 16)
     for opt, value in (("--spacing", "1,1,2"), ("--dims", "4x4x4"), ("--dtype", "uint8")):
         code, _, err = run_cli(monkeypatch, capsys, "info", opt, value)
-        assert code == 2 and opt in err and "only apply to a volume FILE" in err
+        assert code == 2 and opt in err and "only to a volume FILE" in err
     code, _, err = run_cli(monkeypatch, capsys, "render", "--size", "３２x３２")
     assert code == 2 and "--size" in err
 

@@ -43,8 +43,8 @@ def load_input(file: Optional[Path], dims: Optional[str], dtype: Optional[str], 
                                     ("--level", level), ("--nonfinite", nonfinite)) if v]
         if given:  # silently ignoring them would render the demo as if they applied
             raise ParameterError(
-                f"{', '.join(given)}: only apply to a volume FILE; none was given (the built-in demo "
-                f"has its own layout)"
+                f"{', '.join(given)}: {'applies' if len(given) == 1 else 'apply'} only to a volume FILE; none was "
+                f"given (the built-in demo has its own layout)"
             )
         return demo_volume()
     kw = {}

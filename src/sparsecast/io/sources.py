@@ -434,7 +434,8 @@ def open_source(
         raw_opts.append("header_offset")
     is_raw = h5 is None and suffix_of(p) in _RAW_SUFFIXES
     if raw_opts and not is_raw:
-        raise ParameterError(f"{', '.join(raw_opts)}: only apply to raw files (.raw/.bin/.dat), not {path!r}")
+        verb = "applies" if len(raw_opts) == 1 else "apply"
+        raise ParameterError(f"{', '.join(raw_opts)}: {verb} only to raw files (.raw/.bin/.dat), not {path!r}")
     if level is not None and (h5 is not None or not p.is_dir()):
         raise ParameterError(f"level: {path!r} has a single resolution level; level= applies to OME-Zarr images")
     if h5 is not None:

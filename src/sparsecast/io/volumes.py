@@ -243,7 +243,8 @@ def load_volume(
             extra.append("header_offset")
         if extra:
             raise ParameterError(
-                f"{', '.join(extra)}: only apply to raw files (.raw/.bin/.dat), not {str(p)!r}"
+                f"{', '.join(extra)}: {'applies' if len(extra) == 1 else 'apply'} only to raw files "
+                f"(.raw/.bin/.dat), not {str(p)!r}"
             )
 
     orientation = check_orientation(orientation)  # before any work
