@@ -150,9 +150,9 @@ def closest_hit_rbvh_wide(box, child, tris, tri_face, faces, vnormals, tiles, ti
     return best, nx, ny, nz, face, tile, ha, hb
 
 
-# Parallel drivers whose body is one call into a plain kernel with the traversal
-# inlined, the index passed as np.int64 (see ._wide_kernels: the parfor passes over an
-# inlined traversal took most of these drivers' 34-37 s cold compiles; 15-17 s now).
+# Chunk and tile kernels with the traversal inlined, which the drivers below spread over
+# threads (see ._wide_kernels: parfor passes over an inlined traversal took most of these
+# drivers' 34-37 s cold compiles when they were prange loops).
 @njit(cache=True, **NO_REFCOUNT)
 def _rays_chunk(box, child, tris, tri_face, faces, vnormals, tiles, tiles_i, atlas_depth, atlas_normal, root,
                 origins, dirs, t_min, t_max, r0, r1, st_node, st_t, lane_b, fp0, spread, n_levels,

@@ -181,10 +181,11 @@ def slab_setup32_flat(ox, oy, oz, dx, dy, dz):
     (box row ``r`` at ``4 r``) as one flat 18-tuple, the conservative float32 test of
     the module docstring; callers group it into the three 6-tuples ``slab4`` takes.
 
-    Flat because it is inlined into the parallel (prange) drivers, once per ray
-    (as a call it was 9 % of the samples of an RBVH frame, dragons-7m: the call and
-    the reload of its returned tuple; inlined, the frame is 3-4 % faster), and Numba's array analysis of those drivers fails on an
-    inlined function that returns nested tuples.
+    Flat because it is inlined into the drivers' chunk kernels, once per ray (as a
+    call it was 9 % of the samples of an RBVH frame, dragons-7m: the call and the
+    reload of its returned tuple; inlined, the frame is 3-4 % faster), and because
+    Numba's array analysis failed on an inlined function returning nested tuples when
+    the drivers were ``prange`` loops.
 
     ``d`` must have its components under :data:`D_FLUSH` flushed to zero (a float32
     inverse of them would overflow).
