@@ -1,16 +1,20 @@
-"""Bounded render time: a cap on samples per image, and frames that stop between chunks."""
+"""Bounded render time: a cap on samples per image, frames that stop between pieces, frames
+beside other work."""
 
 from __future__ import annotations
 
 import _thread
 import signal
+import threading
 import time
 
+import numba
 import numpy as np
 import pytest
 
 import sparsecast as sc
 from sparsecast import ParameterError
+from sparsecast.kernels import parallel
 from sparsecast.render import schedule
 
 
@@ -53,3 +57,30 @@ def test_an_interrupt_stops_the_frame_between_chunks(monkeypatch):
     assert waited < 0.5
     time.sleep(0.15)  # chunks already running finish; the others were cancelled
     assert len(calls) < 32
+
+
+def test_a_frame_renders_while_the_helper_pool_is_busy():
+    """A frame beside other work in the shared helper pool (an index build, another
+    client's frame): the calling thread renders every tile itself, and the image is the
+    one the frame gives on its own."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core")
+    rng = np.random.default_rng(3)
+    vol = sc.Volume(rng.random((12, 10, 14)).astype(np.float32))
+    tf = sc.TransferFunction.preset("viridis", (0.0, 1.0), threshold=0.3)
+    cam = sc.Camera.orbit(vol, 25.0, 15.0)
+    expected = sc.render(vol, tf, cam, 40, 24, index="naive").rgba
+    helpers = parallel._helpers()
+    release = threading.Event()
+    blockers = [helpers.submit(release.wait, 30) for _ in range(helpers._max_workers)]
+    result = {}
+    caller = threading.Thread(target=lambda: result.update(img=sc.render(vol, tf, cam, 40, 24, index="naive")))
+    try:
+        caller.start()
+        caller.join(20)  # the helpers stay blocked all along: a render that waited for them hangs
+        assert not caller.is_alive(), "the frame waited for a busy helper pool"
+    finally:
+        release.set()
+        for b in blockers:
+            b.result()
+    np.testing.assert_array_equal(result["img"].rgba, expected)

@@ -8,8 +8,8 @@ a render thread beside an index build. Every entry point that runs a
 ``parallel=True`` kernel (index builds, brick statistics, TF classification of
 many ranges, the particle renderer) runs it inside :func:`parallel_section`,
 which serialises callers under ``workqueue`` and costs nothing otherwise. (The
-DVR driver does not use Numba's threading layer: it spreads tiles over its own
-thread pool of ``nogil`` calls, which any layer allows concurrently.)
+DVR driver does not use Numba's threading layer: it spreads tiles with
+:func:`run_chunks`, ``nogil`` calls from Python threads, which any layer allows concurrently.)
 
 Threads without ``prange``: :func:`run_chunks` calls a ``nogil`` kernel over pieces of
 an index range from a few Python threads. Numba's parfor passes cost 3-4 s of a cold
@@ -95,9 +95,9 @@ def _helpers() -> ThreadPoolExecutor:
 PIECES_PER_THREAD = 16
 
 
-def run_chunks(kernel: Callable, n: int, grain: int | None, *args) -> None:
+def run_chunks(kernel: Callable, n: int, grain: int | None, *args, threads: int | None = None) -> None:
     """Call ``kernel(first, last, *args)`` over ``[0, n)`` in pieces of ``grain`` items,
-    on up to :func:`numba.get_num_threads` threads (the caller's setting).
+    on up to ``threads`` threads (default :func:`numba.get_num_threads`, the caller's setting).
 
     ``kernel`` is jitted with ``nogil=True`` and writes disjoint parts of its outputs
     per piece. The calling thread takes pieces too, and helper threads take the next
@@ -117,8 +117,11 @@ def run_chunks(kernel: Callable, n: int, grain: int | None, *args) -> None:
         None: :data:`PIECES_PER_THREAD` pieces per thread.
     *args
         Passed on to ``kernel``.
+    threads : int, optional
+        Threads at most, the caller's included (helpers beyond the pool's
+        ``NUMBA_NUM_THREADS - 1`` wait for a free one, and find the work done or not).
     """
-    threads = max(1, int(numba.get_num_threads()))
+    threads = max(1, int(numba.get_num_threads() if threads is None else threads))
     if grain is None:
         grain = max(1, -(-n // (threads * PIECES_PER_THREAD)))
     pieces = -(-n // grain)

@@ -69,8 +69,8 @@ def dvr_tiles(first, last, record, scratch, data, frame, init, out_rgba, out_sam
 
     The frame is spread over threads by :func:`sparsecast.render.schedule.run_tiles`
     rather than ``prange``: Numba's parallel loops cannot take records (tuples of
-    arrays) as arguments, and chunks handed out by a pool balance the load of
-    sparse frames and let a caller stop between chunks. The loop allocates nothing
+    arrays) as arguments, and pieces taken one at a time balance the load of
+    sparse frames and let a caller stop between pieces. The loop allocates nothing
     and runs without reference counting (:data:`sparsecast.kernels.borrow.NO_REFCOUNT`):
     the caller holds every argument.
 
@@ -241,7 +241,7 @@ _new_scratch_uncached = njit(new_scratch.py_func)
 
 def render_chunk(first, last, record, data, frame, init, out_rgba, out_samples, out_nonempty) -> None:
     """:func:`dvr_tiles` with a fresh scratch: the kernel :func:`tiles_kernel` gives for the
-    package's own records (a pool thread calls it per chunk; the GIL is held only to
+    package's own records (a thread calls it per piece of tiles; the GIL is held only to
     allocate the scratch)."""
     dvr_tiles(first, last, record, new_scratch(record), data, frame, init, out_rgba, out_samples, out_nonempty)
 
