@@ -86,3 +86,18 @@ def test_bench_help_is_whole_at_80_columns(monkeypatch, capsys):
         if suite.duration:
             assert f"{suite.name} ({suite.short}, {suite.duration})" in flat
     assert "bench-<time>.json" in flat and "records.json" in flat
+
+
+def test_bench_features_suite_takes_volume_names_for_its_section_alone():
+    """``--suite features -d tooth``: the features on the tooth, not every index on it too
+    (the suite names no volumes of its own); with volumes of its own, a name stays theirs."""
+    from sparsecast.bench.config import BenchConfig
+    from sparsecast.bench.suites import get_suite
+    from sparsecast.cli.bench import _check_names
+
+    cfg = BenchConfig.from_suite(get_suite("features"), datasets=["tooth", "headsq"])
+    _check_names(cfg)
+    assert cfg.datasets == [] and cfg.section_datasets == ["tooth", "headsq"]
+    quick = BenchConfig.from_suite(get_suite("quick"), datasets=["tooth"], sections=["features"])
+    _check_names(quick)
+    assert quick.datasets == ["tooth"] and quick.section_datasets == []

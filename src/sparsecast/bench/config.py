@@ -55,6 +55,10 @@ class BenchConfig:
     section_datasets : list of str
         Names given as datasets that a section knows rather than :data:`DATASETS`
         (the surface section's meshes, e.g. ``dragon``): see :meth:`route_datasets`.
+    section_only : bool
+        The run is its sections alone (a suite such as ``features`` or ``surface``,
+        which names no volumes of its own): a dataset name a section knows goes to
+        the section only, even where it is a volume of :data:`DATASETS` too.
     """
 
     datasets: list[str] = field(default_factory=lambda: [n for n, d in DATASETS.items() if d.default])
@@ -73,21 +77,24 @@ class BenchConfig:
     sections: list[str] = field(default_factory=list)
     images_dir: Path | None = None
     section_datasets: list[str] = field(default_factory=list)
+    section_only: bool = False
 
     def route_datasets(self) -> list[str]:
         """Move the dataset names a section of this run knows (its module's
-        ``DATASET_NAMES``) and :data:`DATASETS` does not to :attr:`section_datasets`.
+        ``DATASET_NAMES``) and :data:`DATASETS` does not to :attr:`section_datasets`;
+        with :attr:`section_only`, every name a section knows (``--suite features -d
+        tooth`` measures the features on the tooth, not every index on it as well).
 
         Returns the names neither knows, for the caller to report.
         """
         known = {n for s in self.sections for n in section_dataset_names(s)}
         volumes, unknown = [], []
         for n in self.datasets:
-            if n in DATASETS:
-                volumes.append(n)
-            elif n in known:
+            if n in known and (self.section_only or n not in DATASETS):
                 if n not in self.section_datasets:
                     self.section_datasets.append(n)
+            elif n in DATASETS:
+                volumes.append(n)
             else:
                 unknown.append(n)
         self.datasets = volumes
@@ -102,6 +109,7 @@ class BenchConfig:
             sizes=list(suite.sizes), views=list(suite.views), repeat=suite.repeat, warmup=suite.warmup,
             dense_tf=suite.dense_tf, dense_views=suite.dense_views, peer_views=suite.peer_views,
             irt=suite.irt, peers=list(suite.peers), sections=list(suite.sections),
+            section_only=suite.datasets == () and bool(suite.sections),
         )
         for key, value in overrides.items():
             if value is not None:

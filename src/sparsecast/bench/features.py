@@ -42,10 +42,12 @@ from ..volume import Volume
 from .catalog import DATASETS, dense_tf
 from .timing import interleaved
 
-__all__ = ["run", "CT_MR", "CLIP_INDICES", "ISO_INDICES", "SHADING_INDICES", "label_scene"]
+__all__ = ["run", "CT_MR", "DATASET_NAMES", "CLIP_INDICES", "ISO_INDICES", "SHADING_INDICES", "label_scene"]
 
 #: the shared CT / MR volumes of the clip and iso cases (skipped when absent)
 CT_MR = ("bonsai", "tooth", "avm-cta", "chest-ct", "headsq", "mni152")
+#: the volumes ``--dataset`` may name for this section (``sparsecast bench --suite features -d tooth``)
+DATASET_NAMES = tuple(DATASETS)
 #: the indices the clip case times clipped against unclipped: the k-d tree, and the
 #: naive marcher (whose samples fall with the clipped length of each ray, the most a
 #: clip can save; an index's samples fall by less where the cut keeps its non-empty part)

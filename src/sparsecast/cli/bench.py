@@ -22,7 +22,7 @@ __all__ = ["bench"]
 @app.command()
 def bench(
     suite: Annotated[Optional[str], typer.Option(help=f"{suites_help()}; resumable, with a Markdown report and figures (durations: 2-core machines; paper, features and surface with the interleaved rounds).")] = None,
-    dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's. --suite surface also takes its meshes (bunny, dragon, dragons-7m, ...).")] = None,
+    dataset: Annotated[Optional[list[str]], typer.Option("--dataset", "-d", help="Dataset name (repeatable); default: the suite's. --suite surface also takes its meshes (bunny, dragon, dragons-7m, ...); with --suite features a volume is measured by the features section alone.")] = None,
     method: Annotated[Optional[list[str]], typer.Option("--method", "-m", help="Index name, optionally with options as name:key=value (repeatable); default all.")] = None,
     dense: Annotated[Optional[bool], typer.Option("--dense/--no-dense", help="Also bench a TF with no empty space (default: yes).")] = None,
     size: Annotated[Optional[list[str]], typer.Option(help="Image size WIDTHxHEIGHT (repeatable); default 512x512, paper 512 and 1024.")] = None,
@@ -140,7 +140,8 @@ def _check_names(cfg) -> None:
 
     for n in cfg.route_datasets():
         extra = [m for s in cfg.sections for m in section_dataset_names(s)]
-        raise ParameterError(f"--dataset: unknown dataset {n!r}; expected one of {', '.join([*DATASETS, *extra])}")
+        names = dict.fromkeys([*DATASETS, *extra])  # a section may take the volumes too (features)
+        raise ParameterError(f"--dataset: unknown dataset {n!r}; expected one of {', '.join(names)}")
     for p in cfg.peers:
         if p not in PEERS:
             raise ParameterError(f"--peer: unknown peer {p!r}; expected one of {', '.join(PEERS)} or none")
