@@ -145,7 +145,7 @@ def next_listed_leaf(lst, ray, j, t_lo, t_hi):
     return math.inf, -math.inf, j
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per tile and node: a plain call
 def _plane(corners, i):
     """Inward side plane ``(nx, ny, nz, px, py, pz, tol)`` of a tile frustum through
     corner rays ``i`` and ``i + 1`` (``n == 0``: no plane, a degenerate tile edge)."""
@@ -177,14 +177,14 @@ def _plane(corners, i):
     return nx, ny, nz, ox, oy, oz, FRUSTUM_TOL * norm * scale
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per tile and node: a plain call
 def _far_corner(nx, ny, nz, lo, hi, n):
     """The corner of box ``n`` farthest along the direction ``(nx, ny, nz)``."""
     return (hi[n, 0] if nx > 0.0 else lo[n, 0], hi[n, 1] if ny > 0.0 else lo[n, 1],
             hi[n, 2] if nz > 0.0 else lo[n, 2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per tile and node: a plain call
 def _absolute(pl, reach):
     """Plane ``pl`` of :func:`_plane` with its tolerance made absolute for boxes whose
     coordinates are at most ``reach - 1`` in magnitude: ``(nx, ny, nz, c)``, a box lying
@@ -195,7 +195,7 @@ def _absolute(pl, reach):
     return nx, ny, nz, (nx * px + ny * py + nz * pz) - tol * reach
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per tile and node: a plain call
 def _outside(pl, lo, hi, n):
     """Whether box ``n`` lies wholly outside the plane ``pl`` of :func:`_absolute`.
 
@@ -208,7 +208,7 @@ def _outside(pl, lo, hi, n):
     return nx * bx + ny * by + nz * bz < c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)  # once per tile and node: a plain call
 def _outside_clip(box, planes, tol, lo, hi, n):
     """Whether box ``n`` lies wholly outside the clip box ``box`` or behind one of
     ``planes`` (rows ``n . x >= c``), by more than ``tol`` (times a plane's 1-norm)."""
