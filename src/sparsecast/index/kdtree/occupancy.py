@@ -123,6 +123,9 @@ def _classify_bricks(first, last, data, bricks, bvmin, bvmax, prefix, v_lo, scal
                             hi = v
                     mx_lo[zz, yy, cx - cx0] = lo
                     mx_hi[zz, yy, cx - cx0] = hi
+        # The y and z passes below are the same window reduction along two axes, written
+        # out: one helper for both (a plane index, the z pass over (y, x) flattened) took
+        # 8-15 % longer to classify (tooth, mni152, bonsai; 3 alternating pairs of processes).
         for zz in range(lz):
             for cy in range(cy0, cy1):
                 j0 = max(cy - apron, 0) - wy0
