@@ -95,9 +95,10 @@ def _helpers() -> ThreadPoolExecutor:
 PIECES_PER_THREAD = 16
 
 
-def run_chunks(kernel: Callable, n: int, grain: int | None, *args, threads: int | None = None) -> None:
+def run_chunks(kernel: Callable, n: int, grain: int | None, *args) -> None:
     """Call ``kernel(first, last, *args)`` over ``[0, n)`` in pieces of ``grain`` items,
-    on up to ``threads`` threads (default :func:`numba.get_num_threads`, the caller's setting).
+    on up to :func:`numba.get_num_threads` threads (the caller's setting, which
+    :func:`sparsecast.render.schedule.limit_threads` lowers for a Dask worker).
 
     ``kernel`` is jitted with ``nogil=True`` and writes disjoint parts of its outputs
     per piece. The calling thread takes pieces too, and helper threads take the next
@@ -117,11 +118,8 @@ def run_chunks(kernel: Callable, n: int, grain: int | None, *args, threads: int 
         None: :data:`PIECES_PER_THREAD` pieces per thread.
     *args
         Passed on to ``kernel``.
-    threads : int, optional
-        Threads at most, the caller's included (helpers beyond the pool's
-        ``NUMBA_NUM_THREADS - 1`` wait for a free one, and find the work done or not).
     """
-    threads = max(1, int(numba.get_num_threads() if threads is None else threads))
+    threads = max(1, int(numba.get_num_threads()))
     if grain is None:
         grain = max(1, -(-n // (threads * PIECES_PER_THREAD)))
     pieces = -(-n // grain)

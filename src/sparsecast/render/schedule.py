@@ -48,4 +48,4 @@ def run_tiles(kernel: Callable, width: int, height: int, *args) -> None:
     *args
         Passed on to ``kernel``.
     """
-    run_chunks(kernel, int(tile_count(width, height)), None, *args, threads=n_threads())
+    run_chunks(kernel, int(tile_count(width, height)), None, *args)  # n_threads() threads
